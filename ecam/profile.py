@@ -40,6 +40,8 @@ class Segment:
 
     def evaluate(self, x: np.ndarray, order: int, side: str = "right") -> np.ndarray:
         u = np.clip((x - self.master_start) / self.span, 0.0, 1.0)
+        for b in self.law.breaks:  # a break recomputed from a master position may miss by an ulp
+            u = np.where(np.abs(u - b) < 1e-12, b, u)
         values = self.stroke / self.span**order * self.law(u, order, side=side)
         if order == 0:
             values = values + self.slave_start

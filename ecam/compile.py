@@ -1,0 +1,579 @@
+"""The cam-table compiler: CamProfile + format -> CamTable with a certified error.
+
+Steps: sample the profile's position and derivatives at the table points (the average of the
+two one-sided values where a derivative jumps), choose fixed-point shifts as fine as the int64
+budget allows (proving no intermediate can overflow), then certify: predict the error from the
+profile's derivatives and measure the integer lookup against the analytic profile.
+"""
+
+from __future__ import annotations
+
+import math
+import numpy as np
+
+from .errors import InputError, TableFormatError
+from .profile import CamProfile
+from .table import (
+    HEADER_BYTES, KINDS, MAX_MASTER_COUNTS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
+)
+
+__all__ = ["compile_table", "MAX_POINTS", "candidate_points"]
+
+MAX_POINTS = 2**22 + 1
+DENSE_LIMIT = 2**22  # certify on every master count up to this period
+_INT32_MAX = 2**31 - 1
+_INT64_LIMIT = 2.0**63 * (1 - 1e-9)  # float bounds carry a relative margin
+# max over tau of |f - p| = h^(n+1) * max|f^(n+1)| * _ERROR_CONSTANT[n]
+_ERROR_CONSTANT = {1: 1 / 8, 3: 1 / 384, 5: 1 / 46080}
+
+
+def compile_table(
+    profile: CamProfile,
+    *,
+    interp: str | None = None,
+    points: int | None = None,
+    tolerance=None,
+    master_counts: int | None = None,
+    slave_counts_per_unit: float | None = None,
+    certify: bool = True,
+    progress=None,
+) -> CamTable:
+    """Compile a profile into a fixed-point table with a certified error.
+
+    Parameters
+    ----------
+    profile : CamProfile
+    interp : {'linear', 'cubic', 'quintic', 'auto'}
+        Interpolation kind; 'auto' picks the kind and point count that meet ``tolerance`` with the
+        fewest bytes. Default: the cam file's ``[table]`` setting, else 'cubic'.
+    points : int, optional
+        Stored points (intervals + 1); ``points - 1`` must divide ``master_counts``.
+    tolerance : float or str, optional
+        Largest allowed error: a number in slave units, or a string like ``"2 counts"``.
+    master_counts : int
+        Master period in encoder counts, 2..2^31.
+    slave_counts_per_unit : float
+        Slave counts per slave user unit; every table position must fit int32.
+    certify : bool
+        Measure the error of the integer lookup (default). Without it the report has the
+        prediction only.
+    progress : callable, optional
+        ``progress(done, total)`` during certification.
+
+    Returns
+    -------
+    CamTable
+        With ``table.report`` the certificate (see the README).
+
+    Raises
+    ------
+    InputError, TableFormatError
+        One line naming the field, the value and the limit.
+    """
+    if not isinstance(profile, CamProfile):
+        raise InputError(f"profile {type(profile).__name__} should be a CamProfile (see ecam.load_cam)")
+    defaults = profile.table
+    if interp is None:
+        interp = defaults.get("interp", "cubic")
+        if interp == "auto" and points is not None:
+            interp = "cubic"  # the file's 'auto' needs its tolerance; explicit points mean a fixed size
+    if interp not in (*KINDS, "auto"):
+        raise InputError(f"interp {interp!r} should be one of linear, cubic, quintic, auto")
+    if points is None and tolerance is None:
+        points, tolerance = defaults.get("points"), defaults.get("tolerance")
+    master_counts = _integer("master_counts", master_counts if master_counts is not None else defaults.get("master_counts", 2**16), 2, MAX_MASTER_COUNTS)
+    scale = slave_counts_per_unit if slave_counts_per_unit is not None else defaults.get("slave_counts_per_unit", 1000.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
+        raise InputError(f"slave_counts_per_unit {scale!r} should be a finite number > 0")
+    scale = float(scale)
+    low, high = profile.slave_range
+    for value in (low, high):
+        if abs(value * scale) > _INT32_MAX - 1:
+            raise InputError(
+                f"slave position {value:g} {profile.slave_unit} x slave_counts_per_unit {scale:g} = "
+                f"{value * scale:.6g} counts overflows int32 (limit {_INT32_MAX})"
+            )
+    job = _Job(profile, master_counts, scale)
+    if points is not None and tolerance is not None:
+        raise InputError("give either points or tolerance, not both")
+    if interp == "auto" and tolerance is None:
+        raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
+    if points is not None:
+        points = _integer("points", points, 2, MAX_POINTS)
+        intervals = points - 1
+        if master_counts % intervals:
+            better = min(_divisors(master_counts), key=lambda d: (abs(d - intervals), d))
+            raise InputError(
+                f"points {points} gives {intervals} intervals, which do not divide master_counts "
+                f"{master_counts}; use points = k + 1 for a divisor k of {master_counts}, e.g. {better + 1}"
+            )
+        return job.build(KINDS[interp], intervals, certify=certify, progress=progress)
+    tol_counts = _tolerance_counts(tolerance, scale, profile.slave_unit)
+    kinds = list(KINDS.values()) if interp == "auto" else [KINDS[interp]]
+    return job.search(kinds, tol_counts, certify=certify, progress=progress)
+
+
+def candidate_points(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
+    """Interval counts allowed for a table, smallest first: divisors of ``master_counts`` that
+    put every joint where a derivative up to ``degree`` jumps on a table point (all divisors if
+    some joint does not fall on a whole master count)."""
+    return _Job(profile, master_counts, 1.0).intervals(degree)
+
+
+# --------------------------------------------------------------------------------------------
+
+
+class _Job:
+    """One profile at one counts scaling; builds and certifies tables for several formats."""
+
+    def __init__(self, profile: CamProfile, master_counts: int, scale: float):
+        self.profile = profile
+        self.M = master_counts
+        self.S = scale
+        self.unit = profile.master_period / master_counts  # master user units per count
+        self._jumps = None
+        self._bounds = {}
+
+    # derivatives in counts ----------------------------------------------------------------------
+    def derivative(self, counts: np.ndarray, order: int, side: str = "right") -> np.ndarray:
+        x = counts * self.unit
+        if not self.profile.periodic:
+            x = np.clip(x, 0.0, self.profile.master_period)
+        return self.profile(x, order, side=side) * self.S * self.unit**order
+
+    def bound(self, order: int) -> float:
+        if order not in self._bounds:
+            self._bounds[order] = self.profile.derivative_bound(order) * self.S * self.unit**order
+        return self._bounds[order]
+
+    def jumps(self):
+        """(count position, order, size) of every derivative jump up to order 5, in counts."""
+        if self._jumps is None:
+            found = []
+            for master, _ in self.profile.breaks():
+                where = master / self.unit
+                for order in range(6):
+                    left = float(self.derivative(np.array([where]), order, "left")[0])
+                    right = float(self.derivative(np.array([where]), order, "right")[0])
+                    if abs(right - left) > 1e-9 * max(abs(left), abs(right), self.bound(order), 1e-300):
+                        found.append((where, order, right - left))
+            self._jumps = found
+        return self._jumps
+
+    def intervals(self, degree: int) -> list[int]:
+        positions = sorted({where for where, order, _ in self.jumps() if order <= degree})
+        g = self.M
+        for where in positions:
+            nearest = round(where)
+            if abs(where - nearest) > 1e-6:
+                return _divisors(self.M)  # cannot align: every divisor; the certificate shows the cost
+            g = math.gcd(g, nearest % self.M)
+        # h must divide g (and M); intervals = M / h
+        return sorted(self.M // h for h in _divisors(g) if h <= MAX_STEP_COUNTS)
+
+    # search -------------------------------------------------------------------------------------
+    def search(self, degrees, tol_counts, *, certify, progress):
+        best = None
+        floor_seen = math.inf
+        for degree in degrees:
+            for intervals in self.intervals(degree):
+                if intervals + 1 > MAX_POINTS:
+                    break
+                predicted = self.predict_interpolation(degree, intervals) + 1.0
+                floor_seen = min(floor_seen, predicted)
+                if predicted > tol_counts:
+                    continue
+                nbytes = HEADER_BYTES + (intervals + 1) * 4 * ((degree + 1) // 2)
+                if best is not None and nbytes >= best[0]:
+                    break  # more intervals only cost more bytes
+                table = self.build(degree, intervals, certify=False)
+                if table.report["predicted_error_counts"] <= tol_counts:
+                    best = (nbytes, degree, intervals)
+                    break
+        if best is None:
+            raise TableFormatError(
+                f"tolerance {tol_counts:.4g} counts ({tol_counts / self.S:.4g} {self.profile.slave_unit}) cannot be "
+                f"met within {MAX_POINTS} points; the best bound found is {floor_seen:.4g} counts "
+                f"(quantization alone is about 1 count)"
+            )
+        _, degree, intervals = best
+        table = self.build(degree, intervals, certify=certify, progress=progress)
+        table.report["tolerance_counts"] = tol_counts
+        table.report["tolerance_units"] = tol_counts / self.S
+        return table
+
+    # prediction ---------------------------------------------------------------------------------
+    def predict_interpolation(self, degree: int, intervals: int) -> float:
+        """Bound of |f - p| before quantization, in counts: the smooth term
+        c_n h^(n+1) max|f^(n+1)| plus, per interval, the cost of every derivative jump of
+        order <= n that is not exactly representable there."""
+        h = self.M / intervals
+        smooth = _ERROR_CONSTANT[degree] * h ** (degree + 1) * self.bound(degree + 1)
+        per_interval: dict[int, float] = {}
+        for where, order, size in self.jumps():
+            if order > degree:
+                continue
+            position = (where / h) % intervals if self.profile.periodic else where / h
+            i = math.floor(position + 1e-9)
+            offset = position - i
+            if abs(offset) < 1e-9 or abs(offset - 1) < 1e-9:
+                offset = 0.0
+                touched = [(i - 1, 1.0), (i, 0.0)]  # the jump sits on a table point
+            else:
+                touched = [(i, offset)]
+            for index, at in touched:
+                if self.profile.periodic:
+                    index %= intervals
+                elif not 0 <= index < intervals:
+                    continue
+                cost = _jump_cost(degree, order, at, h) * abs(size)
+                per_interval[index] = per_interval.get(index, 0.0) + cost
+        return smooth + max(per_interval.values(), default=0.0)
+
+    # building -----------------------------------------------------------------------------------
+    def point_data(self, degree: int, intervals: int):
+        """Float position, h*slope and h^2*curvature/2 at each point (average of the one-sided
+        values where a derivative jumps)."""
+        h = self.M // intervals
+        counts = np.arange(intervals + 1, dtype=np.float64) * h
+        values = []
+        for order in range((degree + 1) // 2):
+            right = self.derivative(counts, order, "right")
+            left = self.derivative(counts, order, "left")
+            if self.profile.periodic:
+                right[-1] = right[0]
+                left[0] = left[-1]
+            else:
+                left[0], right[-1] = right[0], left[-1]
+            values.append((left + right) / 2 * h**order / math.factorial(order))
+        return values
+
+    def build(self, degree: int, intervals: int, *, certify: bool = True, progress=None) -> CamTable:
+        h = self.M // intervals
+        if h > MAX_STEP_COUNTS:
+            raise TableFormatError(f"step {h} counts (master_counts / intervals) should be <= {MAX_STEP_COUNTS}")
+        data = self.point_data(degree, intervals)
+        positions = np.round(data[0])
+        if np.abs(positions).max() > _INT32_MAX:
+            raise TableFormatError(f"table position {np.abs(positions).max():.0f} counts overflows int32")
+        fmt, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, positions, data)
+        table = CamTable(fmt, positions.astype(np.int32), slopes, curvatures)
+        report = self.certificate(table, data, certify, progress)
+        object.__setattr__(table, "report", report)
+        return table
+
+    # certificate --------------------------------------------------------------------------------
+    def certificate(self, table: CamTable, data, certify: bool, progress) -> dict:
+        f = table.format
+        degree, h = f.degree, f.step_counts
+        intervals = f.points - 1
+        interp_bound = self.predict_interpolation(degree, intervals)
+        quant = _quantization_bound(table)
+        predicted = interp_bound + quant + 1e-6  # 1e-6: float evaluation of the analytic profile
+        off_grid = sorted({
+            round(where * self.unit, 9) for where, order, _ in self.jumps()
+            if order <= degree and abs(where / h - round(where / h)) > 1e-6
+        })
+        report = {
+            "interp": f.interp,
+            "degree": degree,
+            "points": f.points,
+            "intervals": intervals,
+            "step_counts": h,
+            "master_counts": f.master_counts,
+            "slave_counts_per_unit": self.S,
+            "periodic": f.periodic,
+            "bytes": table.nbytes,
+            "crc32": table.crc32,
+            "format": {
+                "step_shift": f.step_shift, "tau_bits": f.tau_bits, "work_bits": f.work_bits,
+                "slope_bits": f.slope_bits, "curvature_bits": f.curvature_bits,
+                "slope_preshift": f.slope_preshift, "tau_recip": f.tau_recip,
+            },
+            "predicted_interpolation_counts": interp_bound,
+            "quantization_counts": quant,
+            "predicted_error_counts": predicted,
+            "predicted_error_units": predicted / self.S,
+            "joints_off_points": off_grid,
+            "slave_unit": self.profile.slave_unit,
+            "master_unit": self.profile.master_unit,
+        }
+        if certify:
+            report.update(self.measure(table, data, progress))
+        return report
+
+    def measure(self, table: CamTable, data, progress) -> dict:
+        """Evaluate the integer lookup against the analytic profile: every master count when the
+        period is at most DENSE_LIMIT, otherwise an even sample plus every joint and point."""
+        M, h = self.M, table.format.step_counts
+        last = M if not table.periodic else M - 1
+        if M <= DENSE_LIMIT:
+            grid = None
+            total, how = last + 1, "every master count"
+        else:
+            sample = np.linspace(0, last, DENSE_LIMIT).round().astype(np.int64)
+            extra = [np.arange(0, M + 1, h, dtype=np.int64)]
+            for where, _, _ in self.jumps():
+                base = int(math.floor(where))
+                extra.append(np.arange(base - 2, base + 3, dtype=np.int64))
+            grid = np.unique(np.clip(np.concatenate([sample] + extra), 0, last))
+            total, how = grid.size, f"{grid.size} master counts: an even sample, every table point and joint"
+        worst = {"err": -1.0, "at": 0, "slope": 0.0, "float": 0.0}
+        chunk = 1 << 20
+        for start in range(0, total, chunk):
+            counts = np.arange(start, min(start + chunk, total), dtype=np.int64) if grid is None else grid[start:start + chunk]
+            exact = self.derivative(counts.astype(np.float64), 0)
+            position, slope = table.lookup(counts, with_slope=True)
+            error = np.abs(position - exact)
+            i = int(np.argmax(error))
+            if error[i] > worst["err"]:
+                worst.update(err=float(error[i]), at=int(counts[i]))
+            exact_slope = self.derivative(counts.astype(np.float64), 1)
+            worst["slope"] = max(worst["slope"], float(np.abs(slope / 2.0**SLOPE_BITS - exact_slope).max()))
+            worst["float"] = max(worst["float"], float(np.abs(_float_interpolant(table, data, counts) - exact).max()))
+            if progress:
+                progress(min(start + chunk, total), total)
+        return {
+            "evaluated": how,
+            "evaluated_counts": int(total),
+            "max_error_counts": worst["err"],
+            "max_error_units": worst["err"] / self.S,
+            "max_error_at_master_counts": worst["at"],
+            "max_error_at_master": worst["at"] * self.unit,
+            "interpolation_error_counts": worst["float"],
+            "max_slope_error_counts_per_count": worst["slope"],
+        }
+
+
+# fixed-point format --------------------------------------------------------------------------
+
+
+def _choose_format(degree, periodic, h, intervals, positions, data):
+    """Pick tau/work/slope/curvature bits as fine as the int64 budget allows; prove it."""
+    pow2 = h & (h - 1) == 0
+    need = (h - 1).bit_length()
+    tau_options = [need] if pow2 else list(range(min(30, need + 16), need - 1, -1))
+    last_error = None
+    for tau_bits in tau_options:
+        tau_recip = -(-(1 << (32 + tau_bits)) // h)
+        work_options = [0] if degree == 1 else range(MAX_WORK_BITS, -1, -1)
+        for work_bits in work_options:
+            slopes = curvatures = None
+            slope_bits = curvature_bits = 0
+            if degree >= 3:
+                slope_bits = min(work_bits, _fit_bits(data[1]))
+                slopes = np.round(data[1] * 2.0**slope_bits)
+                if np.abs(slopes).max() > _INT32_MAX:
+                    raise TableFormatError(f"table slope {np.abs(data[1]).max():.4g} counts per step overflows int32")
+            if degree == 5:
+                curvature_bits = min(work_bits, _fit_bits(data[2]))
+                curvatures = np.round(data[2] * 2.0**curvature_bits)
+                if np.abs(curvatures).max() > _INT32_MAX:
+                    raise TableFormatError(f"table curvature {np.abs(data[2]).max():.4g} counts per step^2 overflows int32")
+            ok, why, preshift = _proof(degree, positions, slopes, curvatures, slope_bits, curvature_bits,
+                                       work_bits, tau_bits, tau_recip)
+            if ok:
+                fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
+                                  tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip)
+                return (
+                    fmt,
+                    None if slopes is None else slopes.astype(np.int32),
+                    None if curvatures is None else curvatures.astype(np.int32),
+                )
+            last_error = why
+    raise TableFormatError(f"no fixed-point format avoids overflow: {last_error}")
+
+
+def _fit_bits(values) -> int:
+    """Largest q <= MAX_WORK_BITS with round(max|values| * 2^q) inside int32."""
+    peak = float(np.abs(values).max())
+    if peak == 0:
+        return MAX_WORK_BITS
+    q = math.floor(math.log2((_INT32_MAX - 1) / peak))
+    return max(0, min(MAX_WORK_BITS, q))
+
+
+def _coefficients_float(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits):
+    """Float images (exact below 2^53, within a relative 1e-16 above) of the integer c_k."""
+    y = positions.astype(np.float64)
+    d = (y[1:] - y[:-1]) * 2.0**work_bits
+    if degree == 1:
+        return y, [d]
+    s = slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
+    a0, a1 = s[:-1], s[1:]
+    if degree == 3:
+        return y, [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
+    c = curvatures.astype(np.float64) * 2.0 ** (work_bits - curvature_bits)
+    b0, b1 = c[:-1], c[1:]
+    return y, [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
+               6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+
+
+def _proof(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits, tau_bits, tau_recip):
+    """Prove every intermediate of FORMAT.md steps 4-6 stays inside int64 and every output inside
+    int32, for every interval and every tau < 2^F. Returns (ok, reason, slope_preshift)."""
+    y, c = _coefficients_float(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits)
+    tau_max = 2.0**tau_bits - 1
+    n = degree
+    if np.abs(np.diff(y)).max() * 2.0**work_bits >= _INT64_LIMIT:
+        return False, f"position step x 2^{work_bits} exceeds int64", 0
+    r = np.abs(c[n - 1])
+    q = n * np.abs(c[n - 1])
+    for k in range(n - 1, 0, -1):
+        if r.max() * tau_max >= _INT64_LIMIT:
+            return False, f"Horner product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+        if q.max() * tau_max >= _INT64_LIMIT:
+            return False, f"slope Horner product {q.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+        r = np.abs(c[k - 1]) + r + 1
+        q = k * np.abs(c[k - 1]) + q + 1
+    total = tau_bits + work_bits
+    if r.max() * tau_max + 2.0 ** max(total - 1, 0) >= _INT64_LIMIT:
+        return False, f"final product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+    reach = np.abs(y[:-1]) + r / 2.0**work_bits + 1
+    if reach.max() > _INT32_MAX:
+        return False, f"interpolated position may reach {reach.max():.0f} counts, past int32", 0
+    q_max = float(q.max())
+    preshift = 0
+    while (q_max / 2.0**preshift + 1) * tau_recip >= _INT64_LIMIT:
+        preshift += 1
+    final = SLOPE_BITS + tau_bits + work_bits - preshift
+    if final < 0:
+        return False, f"slope shift {final} would be negative", 0
+    slope_peak = (q_max / 2.0**preshift + 1) * tau_recip / 2.0**final + 1
+    if slope_peak > _INT32_MAX:
+        return False, f"slope may reach {slope_peak:.4g} (Q16 counts per count), past int32", 0
+    return True, "", preshift
+
+
+# error accounting ----------------------------------------------------------------------------
+
+
+def _basis(degree: int, tau: np.ndarray):
+    """Hermite basis on [0, 1] for data (y, h y', h^2 y''/2) at both ends: lists for end 0, 1."""
+    t = tau
+    if degree == 1:
+        return [[1 - t], [t]]
+    if degree == 3:
+        return [[1 - 3 * t**2 + 2 * t**3, t - 2 * t**2 + t**3], [3 * t**2 - 2 * t**3, -(t**2) + t**3]]
+    t3, t4, t5 = t**3, t**4, t**5
+    return [
+        [1 - 10 * t3 + 15 * t4 - 6 * t5, t - 6 * t3 + 8 * t4 - 3 * t5, t**2 - 3 * t3 + 3 * t4 - t5],
+        [10 * t3 - 15 * t4 + 6 * t5, -4 * t3 + 7 * t4 - 3 * t5, t3 - 2 * t4 + t5],
+    ]
+
+
+_FINE = np.linspace(0.0, 1.0, 4001)
+
+
+def _basis_peak(degree: int, order: int) -> float:
+    """max over tau of |B_order,0| + |B_order,1| (the weight of a data error of that order)."""
+    b = _basis(degree, _FINE)
+    return float((np.abs(b[0][order]) + np.abs(b[1][order])).max())
+
+
+def _jump_cost(degree: int, order: int, at: float, h: float) -> float:
+    """Max interpolation error, per unit jump, of psi(x) = (x - x_j)_+^order / order! with x_j
+    at fraction ``at`` of an interval of length h (data at x_j take the average of both sides)."""
+    t = _FINE
+    x = (t - at) * h
+    psi = np.where(x > 0, x, 0.0) ** order / math.factorial(order)
+    if order == 0:
+        psi = np.where(x > 0, 1.0, np.where(x == 0, 0.5, 0.0))
+    stored = (degree + 1) // 2
+    ends = []
+    for end in (0.0, 1.0):
+        xe = (end - at) * h
+        row = []
+        for d in range(stored):
+            if xe > 0:
+                value = xe ** (order - d) / math.factorial(order - d) if d <= order else 0.0
+            elif xe == 0:
+                value = 0.5 if d == order else 0.0
+            else:
+                value = 0.0
+            row.append(value * h**d / math.factorial(d))
+        ends.append(row)
+    b = _basis(degree, t)
+    interp = sum(b[e][d] * ends[e][d] for e in range(2) for d in range(stored))
+    return float(np.abs(psi - interp).max()) * 1.01 + 1e-12
+
+
+def _quantization_bound(table: CamTable) -> float:
+    """Bound, in counts, of everything integer arithmetic adds to the interpolation error:
+    stored position rounding (1/2), slope and curvature rounding, Horner floors, tau rounding
+    (non-power-of-two steps) and the final rounding (1/2)."""
+    f = table.format
+    bound = 0.5 + 0.5
+    if f.degree >= 3:
+        bound += 0.5 * 2.0**-f.slope_bits * _basis_peak(f.degree, 1)
+    if f.degree == 5:
+        bound += 0.5 * 2.0**-f.curvature_bits * _basis_peak(f.degree, 2)
+    bound += (f.degree - 1) * 2.0**-f.work_bits
+    if f.step_shift < 0:
+        rows = table._coefficient_rows()
+        # |dp/dtau| <= sum k |c_k|, in counts per unit tau
+        dpdtau = sum(k * np.abs(rows[:, k].astype(np.float64)) for k in range(1, f.degree + 1)).max() / 2.0**f.work_bits
+        dtau = 2.0**-f.tau_bits * (1 + f.step_counts / 2.0**32)
+        bound += dpdtau * dtau
+    return bound
+
+
+def _float_interpolant(table: CamTable, data, counts: np.ndarray) -> np.ndarray:
+    """The same Hermite interpolant in float64 on unquantized data: the error before
+    quantization."""
+    f = table.format
+    m = np.mod(counts, f.master_counts) if f.periodic else np.clip(counts, 0, f.master_counts)
+    i = np.minimum(m // f.step_counts, f.points - 2)
+    tau = (m - i * f.step_counts) / f.step_counts
+    b = _basis(f.degree, tau)
+    out = np.zeros(counts.shape)
+    for d, values in enumerate(data):
+        out += b[0][d] * values[i] + b[1][d] * values[i + 1]
+    return out
+
+
+# input helpers ----------------------------------------------------------------------------------
+
+
+def _integer(name, value, low, high):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} {value!r} should be an integer")
+    if not low <= value <= high:
+        raise InputError(f"{name} {value} should be in {low}..{high}")
+    return int(value)
+
+
+def _tolerance_counts(tolerance, scale, unit) -> float:
+    if isinstance(tolerance, str):
+        text = tolerance.strip().lower()
+        for suffix in ("counts", "count", "lsb"):
+            if text.endswith(suffix):
+                try:
+                    value = float(text[: -len(suffix)])
+                except ValueError:
+                    break
+                if math.isfinite(value) and value > 0:
+                    return value
+                break
+        else:
+            try:
+                return _tolerance_counts(float(text), scale, unit)
+            except ValueError:
+                pass
+        raise InputError(f"tolerance {tolerance!r} should be a number in {unit} or '<number> counts'")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not (math.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"tolerance {tolerance!r} should be a finite number > 0")
+    return float(tolerance) * scale
+
+
+def _divisors(n: int) -> list[int]:
+    small, large = [], []
+    d = 1
+    while d * d <= n:
+        if n % d == 0:
+            small.append(d)
+            if d * d != n:
+                large.append(n // d)
+        d += 1
+    return small + large[::-1]
+

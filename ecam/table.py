@@ -1,0 +1,337 @@
+"""CamTable: an immutable fixed-point cam table and its integer lookup.
+
+The lookup is the exact mirror of the C reference runtime (``firmware_tables/ecam_table.c``);
+both follow ``firmware_tables/FORMAT.md`` step by step: integers only, int64 intermediates,
+every intermediate shift floors, the final shift rounds half up.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, TableFormatError
+
+__all__ = ["TableFormat", "CamTable", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "MAGIC"]
+
+KINDS = {"linear": 1, "cubic": 3, "quintic": 5}
+_KIND_NAMES = {v: k for k, v in KINDS.items()}
+SLOPE_BITS = 16
+HEADER_BYTES = 64
+FORMAT_VERSION = 1
+MAGIC = b"ECAM"
+MAX_MASTER_COUNTS = 2**31
+MAX_STEP_COUNTS = 2**30
+MAX_WORK_BITS = 40
+_HEADER = struct.Struct("<4sHHBBbBBBBBIIIIQII12sI")
+assert _HEADER.size == HEADER_BYTES
+
+
+@dataclass(frozen=True)
+class TableFormat:
+    """Every field of a table's fixed-point format (see FORMAT.md for the rules)."""
+
+    degree: int
+    periodic: bool
+    points: int
+    master_counts: int
+    step_counts: int
+    step_shift: int
+    tau_bits: int
+    work_bits: int
+    slope_bits: int
+    curvature_bits: int
+    slope_preshift: int
+    tau_recip: int
+
+    @property
+    def interp(self) -> str:
+        return _KIND_NAMES[self.degree]
+
+    @property
+    def values_per_point(self) -> int:
+        return (self.degree + 1) // 2
+
+    @property
+    def payload_bytes(self) -> int:
+        return self.points * 4 * self.values_per_point
+
+    def validate(self) -> None:
+        """Raise TableFormatError naming the first field that breaks its rule."""
+        def bad(name, value, rule):
+            raise TableFormatError(f"{name} {value!r} should be {rule}")
+
+        if self.degree not in _KIND_NAMES:
+            bad("degree", self.degree, "1, 3 or 5")
+        if not 2 <= self.points <= 2**32 - 1:
+            bad("points", self.points, "in 2..2^32-1")
+        if not 2 <= self.master_counts <= MAX_MASTER_COUNTS:
+            bad("master_counts", self.master_counts, f"in 2..{MAX_MASTER_COUNTS}")
+        if not 1 <= self.step_counts <= MAX_STEP_COUNTS:
+            bad("step_counts", self.step_counts, f"in 1..{MAX_STEP_COUNTS}")
+        if (self.points - 1) * self.step_counts != self.master_counts:
+            bad("step_counts", self.step_counts, f"master_counts / (points - 1) = {self.master_counts}/{self.points - 1}")
+        h = self.step_counts
+        pow2 = h & (h - 1) == 0
+        shift = h.bit_length() - 1 if pow2 else -1
+        if self.step_shift != shift:
+            bad("step_shift", self.step_shift, f"{shift} for step_counts {h}")
+        need = (h - 1).bit_length()  # ceil(log2 h)
+        if pow2 and self.tau_bits != need:
+            bad("tau_bits", self.tau_bits, f"{need} for step_counts {h}")
+        if not need <= self.tau_bits <= 30:
+            bad("tau_bits", self.tau_bits, f"in {need}..30")
+        if self.tau_recip != -(-(1 << (32 + self.tau_bits)) // h):
+            bad("tau_recip", self.tau_recip, "ceil(2^(32+tau_bits)/step_counts)")
+        if not 0 <= self.work_bits <= MAX_WORK_BITS:
+            bad("work_bits", self.work_bits, f"in 0..{MAX_WORK_BITS}")
+        if self.degree == 1 and (self.work_bits or self.slope_bits or self.curvature_bits):
+            bad("work_bits", self.work_bits, "0 (with slope_bits and curvature_bits 0) for linear")
+        if not 0 <= self.slope_bits <= self.work_bits:
+            bad("slope_bits", self.slope_bits, f"in 0..work_bits={self.work_bits}")
+        if self.degree != 5 and self.curvature_bits:
+            bad("curvature_bits", self.curvature_bits, "0 unless quintic")
+        if not 0 <= self.curvature_bits <= self.work_bits:
+            bad("curvature_bits", self.curvature_bits, f"in 0..work_bits={self.work_bits}")
+        final = SLOPE_BITS + self.tau_bits + self.work_bits - self.slope_preshift
+        if self.slope_preshift < 0 or not 0 <= final <= 63:
+            bad("slope_preshift", self.slope_preshift, "such that 0 <= 16 + tau_bits + work_bits - slope_preshift <= 63")
+
+
+@dataclass(frozen=True, eq=False)
+class CamTable:
+    """A compiled cam table: read-only int32 arrays plus their format and certificate.
+
+    Use :func:`ecam.compile_table` to build one, or :meth:`from_bytes` to load a blob.
+
+    Attributes
+    ----------
+    format : TableFormat
+    positions : numpy.ndarray of int32, shape (points,)
+        Slave counts at master counts ``i * step_counts``.
+    slopes : numpy.ndarray of int32 or None
+        ``h * dy/dm`` in Q``slope_bits`` (cubic and quintic).
+    curvatures : numpy.ndarray of int32 or None
+        ``h**2 * d2y/dm2 / 2`` in Q``curvature_bits`` (quintic).
+    report : dict
+        The certificate (empty for a table loaded from bytes).
+    """
+
+    format: TableFormat
+    positions: np.ndarray
+    slopes: np.ndarray | None = None
+    curvatures: np.ndarray | None = None
+    report: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.format.validate()
+        arrays = {"positions": self.positions, "slopes": self.slopes, "curvatures": self.curvatures}
+        need = {"positions": True, "slopes": self.format.degree >= 3, "curvatures": self.format.degree == 5}
+        for name, array in arrays.items():
+            if need[name] != (array is not None):
+                raise TableFormatError(f"{name} should be {'given' if need[name] else 'absent'} for {self.format.interp}")
+            if array is not None:
+                array = np.array(array, dtype=np.int32, copy=True)
+                if array.shape != (self.format.points,):
+                    raise TableFormatError(f"{name} shape {array.shape} should be ({self.format.points},)")
+                array.setflags(write=False)
+                object.__setattr__(self, name, array)
+        object.__setattr__(self, "_coefficients", None)
+
+    # convenience -----------------------------------------------------------------------------
+    @property
+    def interp(self) -> str:
+        return self.format.interp
+
+    @property
+    def points(self) -> int:
+        return self.format.points
+
+    @property
+    def master_counts(self) -> int:
+        return self.format.master_counts
+
+    @property
+    def periodic(self) -> bool:
+        return self.format.periodic
+
+    @property
+    def crc32(self) -> int:
+        return zlib.crc32(self._payload())
+
+    @property
+    def nbytes(self) -> int:
+        return HEADER_BYTES + self.format.payload_bytes
+
+    # lookup ------------------------------------------------------------------------------------
+    def _coefficient_rows(self) -> np.ndarray:
+        """Per-interval integers [Y0, c1, ..., cn] (FORMAT.md step 4), computed once: the same
+        integers the C runtime derives on the fly from the point data."""
+        if self._coefficients is not None:
+            return self._coefficients
+        f = self.format
+        y = self.positions.astype(np.int64)
+        d = (y[1:] - y[:-1]) << f.work_bits
+        cols = [y[:-1]]
+        if f.degree == 1:
+            cols.append(d)
+        else:
+            s = self.slopes.astype(np.int64) << (f.work_bits - f.slope_bits)
+            a0, a1 = s[:-1], s[1:]
+            if f.degree == 3:
+                cols += [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
+            else:
+                c = self.curvatures.astype(np.int64) << (f.work_bits - f.curvature_bits)
+                b0, b1 = c[:-1], c[1:]
+                cols += [
+                    a0,
+                    b0,
+                    10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1,
+                    -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
+                    6 * d - 3 * a0 - 3 * a1 - b0 + b1,
+                ]
+        rows = np.ascontiguousarray(np.stack(cols, axis=1))
+        rows.setflags(write=False)
+        object.__setattr__(self, "_coefficients", rows)
+        return rows
+
+    def _locate(self, master_counts):
+        m = _as_counts(master_counts)
+        f = self.format
+        if f.periodic:
+            local = np.mod(m, f.master_counts)  # exact floor modulo (C: reciprocal + correction)
+            below = above = None
+        else:
+            below, above = m < 0, m >= f.master_counts
+            local = np.clip(m, 0, f.master_counts - 1)
+        if f.step_shift >= 0:
+            index = local >> f.step_shift
+            tau = local & (f.step_counts - 1)
+        else:
+            index = local // f.step_counts  # exact quotient (C: reciprocal + correction)
+            tau = ((local - index * f.step_counts) * f.tau_recip) >> 32
+        return m, index, tau, below, above
+
+    def lookup(self, master_counts, *, with_slope: bool = False):
+        """Slave position in counts at ``master_counts`` (any int64; periodic cams wrap).
+
+        Parameters
+        ----------
+        master_counts : int or array_like of int
+            Master positions in counts. Periodic tables wrap (negative values and values past
+            2^32 included); non-periodic tables hold the end positions outside [0, M].
+        with_slope : bool
+            Also return the slope (Q16 slave counts per master count).
+
+        Returns
+        -------
+        numpy.ndarray of int64 (or int for a scalar), and the slope array if ``with_slope``.
+        """
+        m, index, tau, below, above = self._locate(master_counts)
+        f = self.format
+        rows = self._coefficient_rows()[index]
+        n, shift = f.degree, f.tau_bits
+        r = rows[..., n]
+        for k in range(n - 1, 0, -1):
+            r = rows[..., k] + ((r * tau) >> shift)
+        total = shift + f.work_bits
+        half = (1 << (total - 1)) if total > 0 else 0
+        position = rows[..., 0] + ((r * tau + half) >> total)
+        if below is not None:
+            position = np.where(below, int(self.positions[0]), np.where(above, int(self.positions[-1]), position))
+        if not with_slope:
+            return _unwrap(position, master_counts)
+        q = n * rows[..., n]
+        for k in range(n - 1, 0, -1):
+            q = k * rows[..., k] + ((q * tau) >> shift)
+        slope = ((q >> f.slope_preshift) * f.tau_recip) >> (SLOPE_BITS + shift + f.work_bits - f.slope_preshift)
+        if below is not None:
+            slope = np.where(below | above, 0, slope)
+        return _unwrap(position, master_counts), _unwrap(slope, master_counts)
+
+    def slope(self, master_counts):
+        """Slope of the interpolant: Q16 slave counts per master count (velocity feed-forward)."""
+        return self.lookup(master_counts, with_slope=True)[1]
+
+    # bytes -------------------------------------------------------------------------------------
+    def _payload(self) -> bytes:
+        parts = [self.positions.astype("<i4").tobytes()]
+        if self.slopes is not None:
+            parts.append(self.slopes.astype("<i4").tobytes())
+        if self.curvatures is not None:
+            parts.append(self.curvatures.astype("<i4").tobytes())
+        return b"".join(parts)
+
+    def to_bytes(self) -> bytes:
+        """The binary blob of FORMAT.md: 64-byte header (with CRCs) + little-endian payload."""
+        f = self.format
+        payload = self._payload()
+        header = _HEADER.pack(
+            MAGIC, FORMAT_VERSION, HEADER_BYTES, f.degree, int(f.periodic), f.step_shift, f.tau_bits,
+            f.work_bits, f.slope_bits, f.curvature_bits, f.slope_preshift, f.points, f.master_counts,
+            f.step_counts, 0, f.tau_recip, len(payload), zlib.crc32(payload), bytes(12), 0,
+        )
+        header = header[:-4] + struct.pack("<I", zlib.crc32(header[:-4]))
+        return header + payload
+
+    @classmethod
+    def from_bytes(cls, data) -> "CamTable":
+        """Load and validate a blob; any malformed byte raises TableFormatError."""
+        data = bytes(data)
+        if len(data) < HEADER_BYTES:
+            raise TableFormatError(f"blob length {len(data)} should be >= the {HEADER_BYTES}-byte header")
+        fields = _HEADER.unpack_from(data)
+        (magic, version, header_bytes, degree, flags, step_shift, tau_bits, work_bits, slope_bits,
+         curvature_bits, preshift, points, master_counts, step_counts, reserved, tau_recip,
+         payload_bytes, payload_crc, reserved2, header_crc) = fields
+        if magic != MAGIC:
+            raise TableFormatError(f"blob magic {magic!r} should be {MAGIC!r}")
+        if version != FORMAT_VERSION:
+            raise TableFormatError(f"blob format_version {version} should be {FORMAT_VERSION}")
+        if header_bytes != HEADER_BYTES:
+            raise TableFormatError(f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
+        if zlib.crc32(data[: HEADER_BYTES - 4]) != header_crc:
+            raise TableFormatError(f"blob header_crc32 0x{header_crc:08x} does not match the header")
+        if flags & ~1 or reserved or any(reserved2):
+            raise TableFormatError(f"blob flags 0x{flags:02x} / reserved bytes should be 0 except the periodic bit")
+        fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
+                          work_bits, slope_bits, curvature_bits, preshift, tau_recip)
+        fmt.validate()
+        if payload_bytes != fmt.payload_bytes:
+            raise TableFormatError(f"blob payload_bytes {payload_bytes} should be {fmt.payload_bytes}")
+        if len(data) != HEADER_BYTES + payload_bytes:
+            raise TableFormatError(f"blob length {len(data)} should be {HEADER_BYTES + payload_bytes}")
+        payload = data[HEADER_BYTES:]
+        if zlib.crc32(payload) != payload_crc:
+            raise TableFormatError(f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
+        arrays = np.frombuffer(payload, dtype="<i4").reshape(fmt.values_per_point, points)
+        return cls(
+            fmt,
+            arrays[0],
+            arrays[1] if degree >= 3 else None,
+            arrays[2] if degree == 5 else None,
+        )
+
+
+def _as_counts(master_counts) -> np.ndarray:
+    if isinstance(master_counts, (bool, np.bool_)):
+        raise InputError(f"master_counts {master_counts!r} should be an integer")
+    array = np.asarray(master_counts)
+    if array.dtype.kind not in "iu":
+        if array.dtype == object:
+            try:
+                array = array.astype(np.int64)
+            except OverflowError:
+                raise InputError("master_counts should fit int64") from None
+        else:
+            raise InputError(f"master_counts of dtype {array.dtype} should be integers")
+    if array.dtype == np.uint64 and array.size and array.max() > np.iinfo(np.int64).max:
+        raise InputError("master_counts should fit int64")
+    return array.astype(np.int64, copy=False)
+
+
+def _unwrap(values, original):
+    return int(values) if np.ndim(original) == 0 else values

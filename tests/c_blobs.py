@@ -1,0 +1,460 @@
+"""Independent pure-Python writer and reference lookup for ecam table blobs (FORMAT.md, v1).
+
+This is a test helper, not a test file. It is written straight from firmware_tables/FORMAT.md and
+imports nothing from ``ecam``, so it serves as a second oracle next to ``ecam.CamTable``:
+
+* :func:`make_blob` packs a header with :mod:`struct` and :func:`zlib.crc32` (any header field can
+  be overridden, to build blobs that break exactly one rule);
+* :func:`reference_lookup` follows the "Lookup" section step by step with plain Python ints.
+  Python ints never overflow, so every intermediate is checked against the int64 range and every
+  output against int32: a table that would overflow in C raises :class:`OverflowError` here
+  instead of silently agreeing or disagreeing;
+* :func:`certify` bounds every intermediate of every interval for all tau at once (a sufficient,
+  conservative proof), and :func:`random_table` draws random tables that pass it.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+HEADER_BYTES = 64
+FORMAT_VERSION = 1
+MAGIC = b"ECAM"
+INT64_MIN = -(1 << 63)
+INT64_MAX = (1 << 63) - 1
+INT32_MIN = -(1 << 31)
+INT32_MAX = (1 << 31) - 1
+SLOPE_FRACTION_BITS = 16
+ARRAYS_PER_DEGREE = {1: 1, 3: 2, 5: 3}
+
+# (name, struct code) in blob order; header_crc32 (offset 60) is appended by make_blob.
+HEADER_FIELDS = (
+    ("magic", "4s"),
+    ("format_version", "H"),
+    ("header_bytes", "H"),
+    ("degree", "B"),
+    ("flags", "B"),
+    ("step_shift", "b"),
+    ("tau_bits", "B"),
+    ("work_bits", "B"),
+    ("slope_bits", "B"),
+    ("curvature_bits", "B"),
+    ("slope_preshift", "B"),
+    ("points", "I"),
+    ("master_counts", "I"),
+    ("step_counts", "I"),
+    ("reserved_28", "I"),
+    ("tau_recip", "Q"),
+    ("payload_bytes", "I"),
+    ("payload_crc32", "I"),
+    ("reserved_48", "12s"),
+)
+HEADER_STRUCT = struct.Struct("<" + "".join(code for _, code in HEADER_FIELDS))
+assert HEADER_STRUCT.size == 60
+
+# Byte offset of each header field, for tests that patch raw bytes.
+FIELD_OFFSETS = {}
+_offset = 0
+for _name, _code in HEADER_FIELDS:
+    FIELD_OFFSETS[_name] = _offset
+    _offset += struct.calcsize("<" + _code)
+FIELD_OFFSETS["header_crc32"] = 60
+del _offset, _name, _code
+
+
+def ceil_log2(n: int) -> int:
+    """Smallest e with 2**e >= n (n >= 1)."""
+    return (n - 1).bit_length()
+
+
+def is_power_of_two(n: int) -> bool:
+    return n > 0 and n & (n - 1) == 0
+
+
+@dataclass(frozen=True)
+class Table:
+    """Everything a blob holds, in spec names; derived header fields are properties."""
+
+    degree: int
+    periodic: bool
+    master_counts: int
+    tau_bits: int
+    work_bits: int
+    slope_bits: int
+    curvature_bits: int
+    slope_preshift: int
+    position: tuple
+    slope: tuple = ()
+    curvature: tuple = ()
+
+    @property
+    def points(self) -> int:
+        return len(self.position)
+
+    @property
+    def intervals(self) -> int:
+        return self.points - 1
+
+    @property
+    def step_counts(self) -> int:
+        h, rest = divmod(self.master_counts, self.intervals)
+        assert rest == 0, "N * h must equal M"
+        return h
+
+    @property
+    def step_shift(self) -> int:
+        h = self.step_counts
+        return h.bit_length() - 1 if is_power_of_two(h) else -1
+
+    @property
+    def tau_recip(self) -> int:
+        return -(-(1 << (32 + self.tau_bits)) // self.step_counts)  # ceil(2^(32+F) / h)
+
+    def payload(self) -> bytes:
+        arrays = [self.position, self.slope, self.curvature][: ARRAYS_PER_DEGREE[self.degree]]
+        for array in arrays:
+            assert len(array) == self.points
+        return b"".join(struct.pack(f"<{self.points}i", *array) for array in arrays)
+
+    def header_values(self) -> dict:
+        """Header fields (without header_crc32) as FORMAT.md defines them for this table."""
+        payload = self.payload()
+        return {
+            "magic": MAGIC,
+            "format_version": FORMAT_VERSION,
+            "header_bytes": HEADER_BYTES,
+            "degree": self.degree,
+            "flags": 1 if self.periodic else 0,
+            "step_shift": self.step_shift,
+            "tau_bits": self.tau_bits,
+            "work_bits": self.work_bits,
+            "slope_bits": self.slope_bits,
+            "curvature_bits": self.curvature_bits,
+            "slope_preshift": self.slope_preshift,
+            "points": self.points,
+            "master_counts": self.master_counts,
+            "step_counts": self.step_counts,
+            "reserved_28": 0,
+            "tau_recip": self.tau_recip,
+            "payload_bytes": len(payload),
+            "payload_crc32": zlib.crc32(payload),
+            "reserved_48": bytes(12),
+        }
+
+
+def pack_blob(values: dict, payload: bytes, header_crc32: int | None = None) -> bytes:
+    """Header from explicit field values (+ CRC of bytes 0..59 unless given) and the payload."""
+    head = HEADER_STRUCT.pack(*(values[name] for name, _ in HEADER_FIELDS))
+    crc = zlib.crc32(head) if header_crc32 is None else header_crc32
+    return head + struct.pack("<I", crc) + payload
+
+
+def make_blob(table: Table, **overrides) -> bytes:
+    """The blob of ``table``; keyword overrides replace header fields before the CRC is taken."""
+    values = table.header_values()
+    unknown = set(overrides) - set(values)
+    assert not unknown, f"unknown header fields {unknown}"
+    values.update(overrides)
+    return pack_blob(values, table.payload())
+
+
+def patch(blob: bytes, offset: int, data: bytes, fix_header_crc: bool = True) -> bytes:
+    """Overwrite raw bytes (for values struct cannot pack) and, by default, re-seal the header."""
+    out = bytearray(blob)
+    out[offset : offset + len(data)] = data
+    if fix_header_crc:
+        out[60:64] = struct.pack("<I", zlib.crc32(bytes(out[:60])))
+    return bytes(out)
+
+
+# --------------------------------------------------------------------------------------------
+# Reference lookup, literally FORMAT.md "Lookup of master position m"
+# --------------------------------------------------------------------------------------------
+
+
+def _i64(x: int) -> int:
+    """Every intermediate must be a signed 64-bit value (FORMAT.md Notation)."""
+    if not INT64_MIN <= x <= INT64_MAX:
+        raise OverflowError(f"intermediate {x} leaves int64")
+    return x
+
+
+def _i32(x: int) -> int:
+    if not INT32_MIN <= x <= INT32_MAX:
+        raise OverflowError(f"output {x} leaves int32")
+    return x
+
+
+def asr(x: int, s: int) -> int:
+    """floor(x / 2^s); Python's >> on ints is exactly that."""
+    return x >> s
+
+
+def coefficients(table: Table, i: int) -> list:
+    """Step 4: [None, c1, ..., cn] of interval i in Q(W), each checked against int64."""
+    W = table.work_bits
+    y0, y1 = table.position[i], table.position[i + 1]
+    D = _i64(_i64(y1 - y0) * 2**W)
+    if table.degree == 1:
+        return [None, D]
+    a0 = _i64(table.slope[i] * 2 ** (W - table.slope_bits))
+    a1 = _i64(table.slope[i + 1] * 2 ** (W - table.slope_bits))
+    if table.degree == 3:
+        c2 = _i64(_i64(_i64(3 * D) - _i64(2 * a0)) - a1)
+        c3 = _i64(_i64(a0 + a1) - _i64(2 * D))
+        return [None, a0, c2, c3]
+    b0 = _i64(table.curvature[i] * 2 ** (W - table.curvature_bits))
+    b1 = _i64(table.curvature[i + 1] * 2 ** (W - table.curvature_bits))
+    c3 = _sum64([10 * D, -6 * a0, -4 * a1, -3 * b0, b1])
+    c4 = _sum64([-15 * D, 8 * a0, 7 * a1, 3 * b0, -2 * b1])
+    c5 = _sum64([6 * D, -3 * a0, -3 * a1, -b0, b1])
+    return [None, a0, b0, c3, c4, c5]
+
+
+def _sum64(terms: list) -> int:
+    """Left-to-right sum with every term and partial sum checked against int64."""
+    total = _i64(terms[0])
+    for term in terms[1:]:
+        total = _i64(total + _i64(term))
+    return total
+
+
+def reference_lookup(table: Table, m: int) -> tuple:
+    """(position, slope) of master position m, by the letter of FORMAT.md, in Python ints."""
+    M, N, h = table.master_counts, table.intervals, table.step_counts
+    F, W, P, R = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip
+    n = table.degree
+    # 1. Range.
+    if table.periodic:
+        m_local = m % M  # Python's % is floor modulo: 0 <= m_local < M
+    elif m < 0:
+        return table.position[0], 0
+    elif m >= M:
+        return table.position[N], 0
+    else:
+        m_local = m
+    # 2. Interval.
+    i = m_local // h
+    t = m_local - i * h
+    # 3. Fraction.
+    tau = _i64(t * R) // 2**32
+    if not 0 <= tau < 2**F:
+        raise AssertionError(f"tau {tau} outside [0, 2^{F})")
+    # 4. Coefficients.
+    c = coefficients(table, i)
+    # 5. Position.
+    r = c[n]
+    for k in range(n - 1, 0, -1):
+        r = _i64(c[k] + asr(_i64(r * tau), F))
+    half = 2 ** (F + W - 1) if F + W > 0 else 0
+    position = _i32(table.position[i] + asr(_i64(_i64(r * tau) + _i64(half)), F + W))
+    # 6. Slope.
+    q = _i64(n * c[n])
+    for k in range(n - 1, 0, -1):
+        q = _i64(_i64(k * c[k]) + asr(_i64(q * tau), F))
+    slope = _i32(asr(_i64(asr(q, P) * R), SLOPE_FRACTION_BITS + F + W - P))
+    return position, slope
+
+
+# --------------------------------------------------------------------------------------------
+# Certification: a conservative bound on every intermediate, per interval, for all tau
+# --------------------------------------------------------------------------------------------
+
+
+def certify(table: Table) -> None:
+    """Raise OverflowError unless every lookup of this table stays in int64/int32.
+
+    Sufficient, not tight: with 0 <= tau < 2^F, |asr(x * tau, F)| <= |x|, so the Horner value
+    after coefficient k is at most sum_{j >= k} |c_j| (and sum j * |c_j| for the slope); every
+    linear combination is bounded by the sum of the magnitudes of its terms.
+    """
+    F, W, P, R, n = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip, table.degree
+    half = 2 ** (F + W - 1) if F + W > 0 else 0
+    lim = INT64_MAX  # |x| <= INT64_MAX implies x is an int64
+    tau_max = 2**F - 1
+    out_shift = SLOPE_FRACTION_BITS + F + W - P
+    if not (0 <= out_shift <= 63 and F + W <= 63):
+        raise OverflowError("shift counts out of range")
+    if (table.step_counts - 1) * R > lim:
+        raise OverflowError("t * R")
+    for i in range(table.intervals):
+        mags = _coefficient_magnitudes(table, i)  # [None, |c1|, ...], already bounded
+        position_tail = 0
+        slope_tail = 0
+        for k in range(n, 0, -1):
+            # r_k = c_k + asr(r_{k+1} * tau, F);   q_k = k c_k + asr(q_{k+1} * tau, F)
+            if position_tail * tau_max > lim or slope_tail * tau_max > lim:
+                raise OverflowError(f"Horner product, interval {i}")
+            position_tail += mags[k]
+            slope_tail += k * mags[k]
+            if position_tail > lim or slope_tail > lim or k * mags[k] > lim:
+                raise OverflowError(f"Horner sum, interval {i}")
+        if position_tail * tau_max > lim or position_tail * tau_max + half > lim:
+            raise OverflowError(f"final position sum, interval {i}")
+        step = -(-(position_tail * tau_max + half) // 2 ** (F + W))  # ceil, >= |asr(.)|
+        y0 = table.position[i]
+        if not (INT32_MIN <= y0 - step and y0 + step <= INT32_MAX):
+            raise OverflowError(f"position output, interval {i}")
+        scaled = -(-slope_tail // 2**P)  # >= |asr(q, P)|
+        if scaled * R > lim:
+            raise OverflowError(f"slope reciprocal product, interval {i}")
+        if -(-scaled * R // 2**out_shift) > INT32_MAX:
+            raise OverflowError(f"slope output, interval {i}")
+
+
+def _coefficient_magnitudes(table: Table, i: int) -> list:
+    """Upper bounds of |c_k| for interval i, checking every term and partial sum of step 4."""
+    W = table.work_bits
+    y0, y1 = table.position[i], table.position[i + 1]
+    D = abs(y1 - y0) * 2**W
+    if table.degree == 1:
+        _bounded([D])
+        return [None, D]
+    a0 = abs(table.slope[i]) * 2 ** (W - table.slope_bits)
+    a1 = abs(table.slope[i + 1]) * 2 ** (W - table.slope_bits)
+    if table.degree == 3:
+        return [None, _bounded([a0]), _bounded([3 * D, 2 * a0, a1]), _bounded([a0, a1, 2 * D])]
+    b0 = abs(table.curvature[i]) * 2 ** (W - table.curvature_bits)
+    b1 = abs(table.curvature[i + 1]) * 2 ** (W - table.curvature_bits)
+    return [
+        None,
+        _bounded([a0]),
+        _bounded([b0]),
+        _bounded([10 * D, 6 * a0, 4 * a1, 3 * b0, b1]),
+        _bounded([15 * D, 8 * a0, 7 * a1, 3 * b0, 2 * b1]),
+        _bounded([6 * D, 3 * a0, 3 * a1, b0, b1]),
+    ]
+
+
+def _bounded(magnitudes: list) -> int:
+    total = sum(magnitudes)
+    if total > INT64_MAX:
+        raise OverflowError("coefficient term")
+    return total
+
+
+# --------------------------------------------------------------------------------------------
+# Random valid tables and queries
+# --------------------------------------------------------------------------------------------
+
+
+def random_table(
+    rng: np.random.Generator,
+    degree: int,
+    periodic: bool,
+    master_counts: int,
+    intervals: int,
+    tau_bits: int | None = None,
+    work_bits: int | None = None,
+    delta_bits: int | None = None,
+) -> Table:
+    """A random table with valid header fields whose lookups provably stay in range.
+
+    tau_bits (non-power-of-two steps only), work_bits and delta_bits (log2 of the largest
+    position change per interval) are drawn at random unless given.
+    """
+    M, N = master_counts, intervals
+    h = M // N
+    assert N * h == M and 2 <= M <= 2**31 and 1 <= h <= 2**30
+    if is_power_of_two(h):
+        F = h.bit_length() - 1
+    else:
+        F = int(rng.integers(ceil_log2(h), 31)) if tau_bits is None else tau_bits
+    # Changes of up to h * 2^12 counts per step keep the Q16 slope output near 2^28, and W is
+    # capped so the Horner products stay near 2^62; certify() has the final word, and attempts
+    # that fail it are redrawn with ever smaller changes.
+    log_h = h.bit_length() - 1
+    for attempt in range(400):
+        shrink = attempt // 20
+        if delta_bits is None:
+            db = max(0, int(rng.integers(0, min(24, log_h + 12) + 1)) - shrink)
+        else:
+            db = delta_bits
+        w_max = max(0, min(40, 62 - F - db - 8))
+        if degree == 1:
+            W = 0
+        else:
+            W = int(rng.integers(0, w_max + 1)) if work_bits is None else work_bits
+        Qa = 0 if degree == 1 else int(rng.integers(0, W + 1))
+        Qb = int(rng.integers(0, W + 1)) if degree == 5 else 0
+        position = _random_walk(rng, N + 1, db)
+        slope = _random_ints(rng, N + 1, db + Qa + 1) if degree >= 3 else ()
+        curvature = _random_ints(rng, N + 1, db + Qb) if degree == 5 else ()
+        for P in _preshift_candidates(rng, F, W):
+            table = Table(degree, periodic, M, F, W, Qa, Qb, P, position, slope, curvature)
+            try:
+                certify(table)
+            except OverflowError:
+                continue
+            return table
+    raise AssertionError("no certifiable random table found")
+
+
+def _preshift_candidates(rng: np.random.Generator, F: int, W: int) -> list:
+    """Valid P values (16 + F + W - P in 0..63), a random one first, then ascending."""
+    lo = max(0, SLOPE_FRACTION_BITS + F + W - 63)
+    hi = SLOPE_FRACTION_BITS + F + W
+    first = int(rng.integers(lo, hi + 1))
+    return [first] + [p for p in range(lo, hi + 1) if p != first]
+
+
+def _random_ints(rng: np.random.Generator, count: int, bits: int) -> tuple:
+    bits = min(bits, 31)
+    return tuple(int(v) for v in rng.integers(-(2**bits) + 1, 2**bits, size=count))
+
+
+def _random_walk(rng: np.random.Generator, count: int, delta_bits: int) -> tuple:
+    """Positions within +-2^29 whose neighbours differ by less than 2^delta_bits."""
+    y = int(rng.integers(-(2**28), 2**28))
+    out = [y]
+    for _ in range(count - 1):
+        step = int(rng.integers(-(2**delta_bits) + 1, 2**delta_bits))
+        y = y - step if abs(y + step) > 2**29 else y + step
+        out.append(y)
+    return tuple(out)
+
+
+def edge_queries(table: Table) -> list:
+    """Master positions where wrap, clamp, interval and 64-bit edges meet."""
+    M, h = table.master_counts, table.step_counts
+    centres = [0, M, -M, 2 * M, -2 * M, h, M - h, 7 * M, -7 * M]
+    centres += [s * 2**e for s in (1, -1) for e in (31, 32, 33, 62)]
+    centres += [INT64_MIN, INT64_MAX, (INT64_MAX // M) * M, (INT64_MIN // M) * M]
+    centres += [(INT64_MAX // M - 1) * M, (INT64_MIN // M + 1) * M]
+    out = []
+    for c in centres:
+        for d in range(-3, 4):
+            out.append(c + d)
+    out += [k * h + d for k in range(table.intervals + 1) for d in (-1, 0, 1)][:3000]
+    return sorted({min(max(v, INT64_MIN), INT64_MAX) for v in out})
+
+
+def random_queries(rng: np.random.Generator, table: Table, count: int) -> np.ndarray:
+    """``count`` int64 master positions: all edges, then a mix of wide and near-edge values."""
+    M, h, N = table.master_counts, table.step_counts, table.intervals
+    edges = np.array(edge_queries(table), dtype=np.int64)
+    rest = count - len(edges)
+    k = rest // 5
+    wide = rng.integers(INT64_MIN, INT64_MAX, size=k, dtype=np.int64, endpoint=True)
+    local = rng.integers(-3 * M, 4 * M, size=k, dtype=np.int64)
+    # Near a period or interval boundary, at any of the representable periods.
+    periods = rng.integers(-(2**63 // M), INT64_MAX // M, size=k, dtype=np.int64)
+    boundary = periods * M + rng.integers(0, N + 1, size=k, dtype=np.int64) * h
+    boundary = _clip_add(boundary, rng.integers(-2, 3, size=k, dtype=np.int64))
+    # Near +-2^31, +-2^32 and the ends of int64.
+    centres = np.array([2**31, -(2**31), 2**32, -(2**32), INT64_MIN, INT64_MAX], dtype=np.int64)
+    near = _clip_add(rng.choice(centres, size=k), rng.integers(-4 * M, 4 * M + 1, size=k, dtype=np.int64))
+    small = rng.integers(-(2**40), 2**40, size=rest - 4 * k, dtype=np.int64)
+    return np.concatenate([edges, wide, local, boundary, near, small])
+
+
+def _clip_add(a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """a + d saturated to int64 (exact: done in Python ints)."""
+    return np.array(
+        [min(max(int(x) + int(y), INT64_MIN), INT64_MAX) for x, y in zip(a.tolist(), d.tolist())],
+        dtype=np.int64,
+    )

@@ -1,0 +1,123 @@
+"""Cam files: the format, and one clear line for every kind of bad input."""
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+import ecam
+
+GOOD = """
+name = "t"
+master_period = 360.0
+[[segment]]
+law = "dwell"
+span = 90.0
+[[segment]]
+law = "cycloidal"
+span = 90.0
+stroke = 10.0
+[[segment]]
+law = "cycloidal"
+span = 180.0
+to = 0.0
+"""
+
+
+def write(tmp_path, text, name="cam.toml"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_good_file(tmp_path):
+    profile = ecam.load_cam(write(tmp_path, GOOD))
+    assert profile.master_period == 360.0 and len(profile.segments) == 3
+    assert profile(180.0) == pytest.approx(10.0) and profile(360.0 - 1e-9) == pytest.approx(0.0, abs=1e-9)
+    assert profile.check().ok
+
+
+BAD = [
+    ("master_period = 360.0\n", "segment: missing"),
+    (GOOD.replace("master_period = 360.0", ""), "master_period: missing; expected a number"),
+    (GOOD.replace('law = "cycloidal"\nspan = 90.0', 'law = "cycloid"\nspan = 90.0'), "segment[1].law: 'cycloid' is unknown"),
+    (GOOD.replace("span = 90.0\nstroke", "span = -5.0\nstroke"), "segment[1].span: -5.0 should be > 0"),
+    (GOOD.replace("span = 90.0\nstroke", "span = 0.0\nstroke"), "segment[1].span: 0.0 should be > 0"),
+    (GOOD.replace("stroke = 10.0", "stroke = nan"), "segment[1].stroke: nan should be finite"),
+    (GOOD.replace("stroke = 10.0", "stroke = inf"), "segment[1].stroke: inf should be finite"),
+    (GOOD.replace("stroke = 10.0", 'stroke = "ten"'), "segment[1].stroke: 'ten' should be a number"),
+    (GOOD.replace("stroke = 10.0", "stroke = true"), "segment[1].stroke: True should be a number"),
+    (GOOD.replace("span = 180.0", "span = 170.0"), "leaves a gap against master_period 360.0"),
+    (GOOD.replace("span = 180.0", "span = 190.0"), "leaves a overlap against master_period 360.0"),
+    (GOOD.replace("span = 180.0", "start = 170.0\nspan = 180.0"), "segment[2].start: 170.0 leaves a overlap"),
+    (GOOD.replace("span = 180.0", "start = 190.0\nspan = 170.0"), "segment[2].start: 190.0 leaves a gap"),
+    (GOOD.replace("stroke = 10.0", ""), "segment[1].stroke: missing"),
+    (GOOD + "bogus = 1\n", "unknown field"),
+    (GOOD.replace("periodic", "x").replace('name = "t"', 'name = "t"\nperiodic = "yes"'), "periodic: 'yes' should be true or false"),
+    ("master_period = 360.0\nsegment = 5\n", "should be an array of tables"),
+    (GOOD.replace("[[segment]]\nlaw = \"dwell\"", "[[segment]]\nlaw = 7"), "segment[0].law: 7 should be a law name"),
+    ("master_period = 360.0\n[[segment\n", "is not valid TOML"),
+]
+
+
+@pytest.mark.parametrize("text,message", BAD)
+def test_bad_files_name_field_value_and_expectation(tmp_path, text, message):
+    with pytest.raises(ecam.CamFileError) as info:
+        ecam.load_cam(write(tmp_path, text))
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("text,message", BAD[:6])
+def test_cli_prints_one_line_and_exits_2(tmp_path, text, message):
+    path = write(tmp_path, text)
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(path)], capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stdout == ""
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in run.stderr
+
+
+def test_missing_file_is_one_line(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(tmp_path / "nope.toml")],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and "does not exist" in run.stderr and len(run.stderr.strip().splitlines()) == 1
+
+
+def test_poly5_and_poly7_with_matched_neighbours(tmp_path):
+    text = """
+    master_period = 300.0
+    periodic = false
+    [[segment]]
+    law = "constant_velocity"
+    span = 100.0
+    stroke = 100.0
+    [[segment]]
+    law = "poly5"
+    span = 100.0
+    stroke = 50.0
+    start_velocity = "match"
+    end_velocity = "match"
+    [[segment]]
+    law = "constant_velocity"
+    span = 100.0
+    stroke = 20.0
+    """
+    profile = ecam.load_cam(write(tmp_path, text))
+    report = profile.check()
+    assert report.continuous(1)  # velocity matched on both sides (VDI 2143 motion-to-motion)
+    assert profile(150.0, 1) > 0
+    text7 = text.replace('"poly5"', '"poly7"')
+    assert ecam.load_cam(write(tmp_path, text7, "c7.toml")).check().continuous(2)
+
+
+def test_combination_in_a_file_needs_a_ratio(tmp_path):
+    text = """
+    master_period = 120.0
+    [[segment]]
+    combination = ["half_cycloid_start", "half_harmonic_end"]
+    span = 120.0
+    stroke = 1.75
+    """
+    with pytest.raises(ecam.CamFileError, match="segment\\[0\\].accel_ratio: missing"):
+        ecam.load_cam(write(tmp_path, text))

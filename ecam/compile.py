@@ -253,11 +253,10 @@ class _Job:
         if h > MAX_STEP_COUNTS:
             raise TableFormatError(f"step {h} counts (master_counts / intervals) should be <= {MAX_STEP_COUNTS}")
         data = self.point_data(degree, intervals)
-        positions = np.round(data[0])
-        if np.abs(positions).max() > _INT32_MAX:
-            raise TableFormatError(f"table position {np.abs(positions).max():.0f} counts overflows int32")
-        fmt, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, positions, data)
-        table = CamTable(fmt, positions.astype(np.int32), slopes, curvatures)
+        if np.abs(data[0]).max() + 0.5 > _INT32_MAX:
+            raise TableFormatError(f"table position {np.abs(data[0]).max():.0f} counts overflows int32")
+        fmt, positions, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, data)
+        table = CamTable(fmt, positions, slopes, curvatures)
         report = self.certificate(table, data, certify, progress)
         object.__setattr__(table, "report", report)
         return table
@@ -286,7 +285,8 @@ class _Job:
             "bytes": table.nbytes,
             "crc32": table.crc32,
             "format": {
-                "step_shift": f.step_shift, "tau_bits": f.tau_bits, "work_bits": f.work_bits,
+                "position_bits": f.position_bits, "step_shift": f.step_shift, "tau_bits": f.tau_bits,
+                "work_bits": f.work_bits,
                 "slope_bits": f.slope_bits, "curvature_bits": f.curvature_bits,
                 "slope_preshift": f.slope_preshift, "tau_recip": f.tau_recip,
             },
@@ -348,16 +348,19 @@ class _Job:
 # fixed-point format --------------------------------------------------------------------------
 
 
-def _choose_format(degree, periodic, h, intervals, positions, data):
-    """Pick tau/work/slope/curvature bits as fine as the int64 budget allows; prove it."""
+def _choose_format(degree, periodic, h, intervals, data):
+    """Pick position/tau/work/slope/curvature bits as fine as the int64 budget allows; prove it."""
     pow2 = h & (h - 1) == 0
+    position_fit = min(30, _fit_bits(data[0]))
     need = (h - 1).bit_length()
     tau_options = [need] if pow2 else list(range(min(30, need + 16), need - 1, -1))
     last_error = None
     for tau_bits in tau_options:
         tau_recip = -(-(1 << (32 + tau_bits)) // h)
-        work_options = [0] if degree == 1 else range(MAX_WORK_BITS, -1, -1)
+        work_options = range(position_fit, -1, -1) if degree == 1 else range(MAX_WORK_BITS, -1, -1)
         for work_bits in work_options:
+            position_bits = min(position_fit, work_bits)
+            positions = np.round(data[0] * 2.0**position_bits)
             slopes = curvatures = None
             slope_bits = curvature_bits = 0
             if degree >= 3:
@@ -370,13 +373,15 @@ def _choose_format(degree, periodic, h, intervals, positions, data):
                 curvatures = np.round(data[2] * 2.0**curvature_bits)
                 if np.abs(curvatures).max() > _INT32_MAX:
                     raise TableFormatError(f"table curvature {np.abs(data[2]).max():.4g} counts per step^2 overflows int32")
-            ok, why, preshift = _proof(degree, positions, slopes, curvatures, slope_bits, curvature_bits,
-                                       work_bits, tau_bits, tau_recip)
+            ok, why, preshift = _proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
+                                       curvature_bits, work_bits, tau_bits, tau_recip)
             if ok:
                 fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
-                                  tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip)
+                                  tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip,
+                                  position_bits)
                 return (
                     fmt,
+                    positions.astype(np.int32),
                     None if slopes is None else slopes.astype(np.int32),
                     None if curvatures is None else curvatures.astype(np.int32),
                 )
@@ -393,10 +398,11 @@ def _fit_bits(values) -> int:
     return max(0, min(MAX_WORK_BITS, q))
 
 
-def _coefficients_float(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits):
-    """Float images (exact below 2^53, within a relative 1e-16 above) of the integer c_k."""
-    y = positions.astype(np.float64)
-    d = (y[1:] - y[:-1]) * 2.0**work_bits
+def _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits):
+    """Float images (exact below 2^53, within a relative 1e-16 above) of Y0 * 2^(W-Qy) and the
+    integer c_k."""
+    y = positions.astype(np.float64) * 2.0 ** (work_bits - position_bits)
+    d = y[1:] - y[:-1]
     if degree == 1:
         return y, [d]
     s = slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
@@ -409,14 +415,16 @@ def _coefficients_float(degree, positions, slopes, curvatures, slope_bits, curva
                6 * d - 3 * a0 - 3 * a1 - b0 + b1]
 
 
-def _proof(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits, tau_bits, tau_recip):
+def _proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits, tau_bits,
+           tau_recip):
     """Prove every intermediate of FORMAT.md steps 4-6 stays inside int64 and every output inside
     int32, for every interval and every tau < 2^F. Returns (ok, reason, slope_preshift)."""
-    y, c = _coefficients_float(degree, positions, slopes, curvatures, slope_bits, curvature_bits, work_bits)
+    y, c = _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits,
+                               work_bits)
     tau_max = 2.0**tau_bits - 1
     n = degree
-    if np.abs(np.diff(y)).max() * 2.0**work_bits >= _INT64_LIMIT:
-        return False, f"position step x 2^{work_bits} exceeds int64", 0
+    if np.abs(y).max() * 2 >= _INT64_LIMIT:
+        return False, f"position x 2^{work_bits - position_bits} exceeds int64", 0
     r = np.abs(c[n - 1])
     q = n * np.abs(c[n - 1])
     for k in range(n - 1, 0, -1):
@@ -426,14 +434,23 @@ def _proof(degree, positions, slopes, curvatures, slope_bits, curvature_bits, wo
             return False, f"slope Horner product {q.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
         r = np.abs(c[k - 1]) + r + 1
         q = k * np.abs(c[k - 1]) + q + 1
-    total = tau_bits + work_bits
-    if r.max() * tau_max + 2.0 ** max(total - 1, 0) >= _INT64_LIMIT:
+    if r.max() * tau_max >= _INT64_LIMIT:
         return False, f"final product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
-    reach = np.abs(y[:-1]) + r / 2.0**work_bits + 1
+    if (np.abs(y[:-1]) + r + 2.0**work_bits).max() >= _INT64_LIMIT:
+        return False, f"final sum exceeds int64 (work_bits {work_bits})", 0
+    # The interpolant on [0, 1] lies in the hull of its Bernstein coefficients; Horner floors and
+    # the final rounding move the result by less than one more count.
+    reach = np.zeros_like(y[:-1])
+    for j in range(n + 1):
+        b = y[:-1].copy()
+        for k in range(1, j + 1):
+            b += math.comb(j, k) / math.comb(n, k) * c[k - 1]
+        reach = np.maximum(reach, np.abs(b))
+    reach = reach / 2.0**work_bits + n * 2.0**-work_bits + 1
     if reach.max() > _INT32_MAX:
         return False, f"interpolated position may reach {reach.max():.0f} counts, past int32", 0
     q_max = float(q.max())
-    preshift = 0
+    preshift = max(0, SLOPE_BITS + tau_bits + work_bits - 63)  # keep the final shift <= 63
     while (q_max / 2.0**preshift + 1) * tau_recip >= _INT64_LIMIT:
         preshift += 1
     final = SLOPE_BITS + tau_bits + work_bits - preshift
@@ -503,12 +520,12 @@ def _quantization_bound(table: CamTable) -> float:
     stored position rounding (1/2), slope and curvature rounding, Horner floors, tau rounding
     (non-power-of-two steps) and the final rounding (1/2)."""
     f = table.format
-    bound = 0.5 + 0.5
+    bound = 0.5 * 2.0**-f.position_bits + 0.5
     if f.degree >= 3:
         bound += 0.5 * 2.0**-f.slope_bits * _basis_peak(f.degree, 1)
     if f.degree == 5:
         bound += 0.5 * 2.0**-f.curvature_bits * _basis_peak(f.degree, 2)
-    bound += (f.degree - 1) * 2.0**-f.work_bits
+    bound += f.degree * 2.0**-f.work_bits
     if f.step_shift < 0:
         rows = table._coefficient_rows()
         # |dp/dtau| <= sum k |c_k|, in counts per unit tau

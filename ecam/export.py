@@ -69,6 +69,7 @@ def to_c_header(table: CamTable, name: str = "cam") -> str:
         "    uint8_t slope_bits;      /* fraction bits of slopes (counts per step) */",
         "    uint8_t curvature_bits;  /* fraction bits of half curvatures (counts per step^2) */",
         "    uint8_t slope_preshift;  /* shift before the slope reciprocal multiply */",
+        "    uint8_t position_bits;   /* fraction bits of stored positions */",
         "    uint32_t points;         /* stored points = intervals + 1 */",
         "    uint32_t master_counts;  /* master period, counts */",
         "    uint32_t step_counts;    /* master counts per interval */",
@@ -76,11 +77,11 @@ def to_c_header(table: CamTable, name: str = "cam") -> str:
         "    uint32_t crc32;          /* CRC-32 of the payload */",
         f"}} {ident}_format = {{",
         f"    {f.degree}, {int(f.periodic)}, {f.step_shift}, {f.tau_bits}, {f.work_bits}, {f.slope_bits}, "
-        f"{f.curvature_bits}, {f.slope_preshift},",
+        f"{f.curvature_bits}, {f.slope_preshift}, {f.position_bits},",
         f"    {f.points}u, {f.master_counts}u, {f.step_counts}u, {f.tau_recip}ull, 0x{table.crc32:08x}u,",
         "};",
         "",
-        _c_array(f"{ident}_position", table.positions, "slave position, counts"),
+        _c_array(f"{ident}_position", table.positions, f"slave position, counts, Q{f.position_bits}"),
     ]
     if table.slopes is not None:
         parts += ["", _c_array(f"{ident}_slope", table.slopes, f"h * dy/dm, counts per step, Q{f.slope_bits}")]
@@ -104,7 +105,7 @@ def to_csv(table: CamTable) -> str:
     """One row per point: index, master counts, position counts, and the raw slope/curvature."""
     f = table.format
     out = io.StringIO()
-    header = ["index", "master_counts", "position_counts"]
+    header = ["index", "master_counts", f"position_q{f.position_bits}"]
     columns = [np.arange(f.points), np.arange(f.points, dtype=np.int64) * f.step_counts, table.positions]
     if table.slopes is not None:
         header.append(f"slope_q{f.slope_bits}")
@@ -136,6 +137,7 @@ def to_json(table: CamTable, name: str = "cam") -> str:
         "slope_bits": f.slope_bits,
         "curvature_bits": f.curvature_bits,
         "slope_preshift": f.slope_preshift,
+        "position_bits": f.position_bits,
         "tau_recip": f.tau_recip,
         "crc32": table.crc32,
         "positions": [int(v) for v in table.positions],

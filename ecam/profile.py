@@ -199,6 +199,7 @@ class CamProfile:
             raise InputError(
                 f"master position {bad!r} is outside the non-periodic cam's range [0, {period!r}]"
             )
+        x = self._snap_to_joints(x)
         index = np.searchsorted(self._starts, x, side="right" if side == "right" else "left") - 1
         index = np.clip(index, 0, len(self.segments) - 1)
         out = np.empty_like(x)
@@ -207,6 +208,17 @@ class CamProfile:
             if mask.any():
                 out[mask] = seg.evaluate(x[mask], order, side)
         return float(out) if scalar else out
+
+    def _snap_to_joints(self, x: np.ndarray) -> np.ndarray:
+        """A joint recomputed from counts (e.g. 6000 * 0.01) may miss by an ulp and pick the
+        wrong side; move positions within rounding distance onto the joint."""
+        if len(self.segments) == 1 or x.size == 0:
+            return x
+        joints = self._starts[1:]
+        i = np.clip(np.searchsorted(joints, x), 1, len(joints)) - 1
+        near = np.where(np.abs(joints[i] - x) <= np.abs(joints[np.minimum(i + 1, len(joints) - 1)] - x),
+                        joints[i], joints[np.minimum(i + 1, len(joints) - 1)])
+        return np.where(np.abs(near - x) <= 1e-12 * self.master_period, near, x)
 
     @property
     def slave_range(self) -> tuple[float, float]:

@@ -26,7 +26,7 @@ MAGIC = b"ECAM"
 MAX_MASTER_COUNTS = 2**31
 MAX_STEP_COUNTS = 2**30
 MAX_WORK_BITS = 40
-_HEADER = struct.Struct("<4sHHBBbBBBBBIIIIQII12sI")
+_HEADER = struct.Struct("<4sHHBBbBBBBBIIIB3sQII12sI")
 assert _HEADER.size == HEADER_BYTES
 
 
@@ -46,6 +46,7 @@ class TableFormat:
     curvature_bits: int
     slope_preshift: int
     tau_recip: int
+    position_bits: int = 0
 
     @property
     def interp(self) -> str:
@@ -86,10 +87,12 @@ class TableFormat:
             bad("tau_bits", self.tau_bits, f"in {need}..30")
         if self.tau_recip != -(-(1 << (32 + self.tau_bits)) // h):
             bad("tau_recip", self.tau_recip, "ceil(2^(32+tau_bits)/step_counts)")
-        if not 0 <= self.work_bits <= MAX_WORK_BITS:
-            bad("work_bits", self.work_bits, f"in 0..{MAX_WORK_BITS}")
-        if self.degree == 1 and (self.work_bits or self.slope_bits or self.curvature_bits):
-            bad("work_bits", self.work_bits, "0 (with slope_bits and curvature_bits 0) for linear")
+        if not 0 <= self.position_bits <= 30:
+            bad("position_bits", self.position_bits, "in 0..30")
+        if not self.position_bits <= self.work_bits <= MAX_WORK_BITS:
+            bad("work_bits", self.work_bits, f"in position_bits={self.position_bits}..{MAX_WORK_BITS}")
+        if self.degree == 1 and (self.work_bits != self.position_bits or self.slope_bits or self.curvature_bits):
+            bad("work_bits", self.work_bits, "position_bits (with slope_bits and curvature_bits 0) for linear")
         if not 0 <= self.slope_bits <= self.work_bits:
             bad("slope_bits", self.slope_bits, f"in 0..work_bits={self.work_bits}")
         if self.degree != 5 and self.curvature_bits:
@@ -111,7 +114,7 @@ class CamTable:
     ----------
     format : TableFormat
     positions : numpy.ndarray of int32, shape (points,)
-        Slave counts at master counts ``i * step_counts``.
+        Slave counts at master counts ``i * step_counts``, in Q``position_bits``.
     slopes : numpy.ndarray of int32 or None
         ``h * dy/dm`` in Q``slope_bits`` (cubic and quintic).
     curvatures : numpy.ndarray of int32 or None
@@ -174,8 +177,8 @@ class CamTable:
             return self._coefficients
         f = self.format
         y = self.positions.astype(np.int64)
-        d = (y[1:] - y[:-1]) << f.work_bits
-        cols = [y[:-1]]
+        d = (y[1:] - y[:-1]) << (f.work_bits - f.position_bits)
+        cols = [y[:-1] << (f.work_bits - f.position_bits)]
         if f.degree == 1:
             cols.append(d)
         else:
@@ -237,11 +240,11 @@ class CamTable:
         r = rows[..., n]
         for k in range(n - 1, 0, -1):
             r = rows[..., k] + ((r * tau) >> shift)
-        total = shift + f.work_bits
-        half = (1 << (total - 1)) if total > 0 else 0
-        position = rows[..., 0] + ((r * tau + half) >> total)
+        w = f.work_bits
+        half = (1 << (w - 1)) if w > 0 else 0
+        position = (rows[..., 0] + ((r * tau) >> shift) + half) >> w
         if below is not None:
-            position = np.where(below, int(self.positions[0]), np.where(above, int(self.positions[-1]), position))
+            position = np.where(below, self._end_position(0), np.where(above, self._end_position(-1), position))
         if not with_slope:
             return _unwrap(position, master_counts)
         q = n * rows[..., n]
@@ -251,6 +254,10 @@ class CamTable:
         if below is not None:
             slope = np.where(below | above, 0, slope)
         return _unwrap(position, master_counts), _unwrap(slope, master_counts)
+
+    def _end_position(self, index: int) -> int:
+        qy = self.format.position_bits
+        return (int(self.positions[index]) + ((1 << (qy - 1)) if qy else 0)) >> qy
 
     def slope(self, master_counts):
         """Slope of the interpolant: Q16 slave counts per master count (velocity feed-forward)."""
@@ -272,7 +279,7 @@ class CamTable:
         header = _HEADER.pack(
             MAGIC, FORMAT_VERSION, HEADER_BYTES, f.degree, int(f.periodic), f.step_shift, f.tau_bits,
             f.work_bits, f.slope_bits, f.curvature_bits, f.slope_preshift, f.points, f.master_counts,
-            f.step_counts, 0, f.tau_recip, len(payload), zlib.crc32(payload), bytes(12), 0,
+            f.step_counts, f.position_bits, bytes(3), f.tau_recip, len(payload), zlib.crc32(payload), bytes(12), 0,
         )
         header = header[:-4] + struct.pack("<I", zlib.crc32(header[:-4]))
         return header + payload
@@ -285,7 +292,7 @@ class CamTable:
             raise TableFormatError(f"blob length {len(data)} should be >= the {HEADER_BYTES}-byte header")
         fields = _HEADER.unpack_from(data)
         (magic, version, header_bytes, degree, flags, step_shift, tau_bits, work_bits, slope_bits,
-         curvature_bits, preshift, points, master_counts, step_counts, reserved, tau_recip,
+         curvature_bits, preshift, points, master_counts, step_counts, position_bits, reserved, tau_recip,
          payload_bytes, payload_crc, reserved2, header_crc) = fields
         if magic != MAGIC:
             raise TableFormatError(f"blob magic {magic!r} should be {MAGIC!r}")
@@ -295,10 +302,10 @@ class CamTable:
             raise TableFormatError(f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
         if zlib.crc32(data[: HEADER_BYTES - 4]) != header_crc:
             raise TableFormatError(f"blob header_crc32 0x{header_crc:08x} does not match the header")
-        if flags & ~1 or reserved or any(reserved2):
+        if flags & ~1 or any(reserved) or any(reserved2):
             raise TableFormatError(f"blob flags 0x{flags:02x} / reserved bytes should be 0 except the periodic bit")
         fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
-                          work_bits, slope_bits, curvature_bits, preshift, tau_recip)
+                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits)
         fmt.validate()
         if payload_bytes != fmt.payload_bytes:
             raise TableFormatError(f"blob payload_bytes {payload_bytes} should be {fmt.payload_bytes}")

@@ -1,0 +1,71 @@
+"""Generate firmware_tables/: the seed cams' tables and golden vectors, byte for byte
+reproducible (no dates: a format version and a content CRC instead).
+
+    python3 -m ecam.firmware [DIR]    # default: the repository's firmware_tables/
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .camfile import load_cam
+from .compile import compile_table
+from .export import to_c_header, to_json
+
+KINDS = ("linear", "cubic", "quintic")
+VECTOR_SEED = 20261121
+
+
+def golden_queries(table) -> np.ndarray:
+    """Master counts for golden vectors: edges, wraps, negative and huge values, and a fixed
+    random sample."""
+    m = table.master_counts
+    h = table.format.step_counts
+    edges = [0, 1, h - 1, h, h + 1, m - 1, m, m + 1, -1, -h, -m, -m - 1, 2**31 - 1, 2**31, -(2**31), 2**32,
+             2**32 + 1, -(2**32), 2**40 + 12345, -(2**40) - 7, 2**62, -(2**62), 2**63 - 1, -(2**63)]
+    rng = np.random.default_rng(VECTOR_SEED)
+    sample = rng.integers(-4 * m, 5 * m, 2000)
+    return np.concatenate([np.array(edges, dtype=np.int64), sample.astype(np.int64)])
+
+
+def vectors_csv(table) -> str:
+    queries = golden_queries(table)
+    position, slope = table.lookup(queries, with_slope=True)
+    rows = ["master_counts,position,slope"]
+    rows += [f"{int(q)},{int(p)},{int(s)}" for q, p, s in zip(queries, position, slope)]
+    return "\n".join(rows) + "\n"
+
+
+def generate(cams_dir: Path) -> dict[str, bytes]:
+    """Every generated file, by path relative to firmware_tables/."""
+    files: dict[str, bytes] = {}
+    for cam_path in sorted(cams_dir.glob("*.toml")):
+        profile = load_cam(cam_path)
+        stem = cam_path.stem
+        table = compile_table(profile)  # the cam file's own [table] format
+        files[f"tables/{stem}.h"] = to_c_header(table, stem).encode()
+        files[f"tables/{stem}.bin"] = table.to_bytes()
+        files[f"tables/{stem}.json"] = to_json(table, stem).encode()
+        for kind in KINDS:
+            fixed = compile_table(profile, interp=kind, points=table.points, certify=False)
+            files[f"vectors/{stem}_{kind}.bin"] = fixed.to_bytes()
+            files[f"vectors/{stem}_{kind}.csv"] = vectors_csv(fixed).encode()
+    return files
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    root = Path(argv[0]) if argv else Path(__file__).resolve().parent.parent / "firmware_tables"
+    for relative, content in generate(root / "cams").items():
+        path = root / relative
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(content)
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -186,7 +186,10 @@ class _Job:
                 nbytes = HEADER_BYTES + (intervals + 1) * 4 * ((degree + 1) // 2)
                 if best is not None and nbytes >= best[0]:
                     break  # more intervals only cost more bytes
-                table = self.build(degree, intervals, certify=False)
+                try:
+                    table = self.build(degree, intervals, certify=False)
+                except TableFormatError:
+                    continue  # this size has no valid format (e.g. a step past 2^30); try the next
                 if table.report["predicted_error_counts"] <= tol_counts:
                     best = (nbytes, degree, intervals)
                     break

@@ -523,7 +523,7 @@ def _quantization_bound(table: CamTable) -> float:
     stored position rounding (1/2), slope and curvature rounding, Horner floors, tau rounding
     (non-power-of-two steps) and the final rounding (1/2)."""
     f = table.format
-    bound = 0.5 * 2.0**-f.position_bits + 0.5
+    bound = 0.5 * 2.0**-f.position_bits + (0.5 if f.work_bits else 1.0)  # W = 0: the last shift floors
     if f.degree >= 3:
         bound += 0.5 * 2.0**-f.slope_bits * _basis_peak(f.degree, 1)
     if f.degree == 5:
@@ -532,7 +532,7 @@ def _quantization_bound(table: CamTable) -> float:
     if f.step_shift < 0:
         rows = table._coefficient_rows()
         # |dp/dtau| <= sum k |c_k|, in counts per unit tau
-        dpdtau = sum(k * np.abs(rows[:, k].astype(np.float64)) for k in range(1, f.degree + 1)).max() / 2.0**f.work_bits
+        dpdtau = sum(k * np.abs(rows[k].astype(np.float64)) for k in range(1, f.degree + 1)).max() / 2.0**f.work_bits
         dtau = 2.0**-f.tau_bits * (1 + f.step_counts / 2.0**32)
         bound += dpdtau * dtau
     return bound

@@ -170,15 +170,17 @@ class CamTable:
         return HEADER_BYTES + self.format.payload_bytes
 
     # lookup ------------------------------------------------------------------------------------
-    def _coefficient_rows(self) -> np.ndarray:
-        """Per-interval integers [Y0, c1, ..., cn] (FORMAT.md step 4), computed once: the same
-        integers the C runtime derives on the fly from the point data."""
+    def _coefficient_rows(self) -> tuple[np.ndarray, ...]:
+        """Per-interval integers (Y0 * 2^(W-Qy), c1, ..., cn) of FORMAT.md step 4, one contiguous
+        array each, computed once: the same integers the C runtime derives on the fly from the
+        point data (contiguous columns make the vectorized gathers several times faster)."""
         if self._coefficients is not None:
             return self._coefficients
         f = self.format
+        up = f.work_bits - f.position_bits
         y = self.positions.astype(np.int64)
-        d = (y[1:] - y[:-1]) << (f.work_bits - f.position_bits)
-        cols = [y[:-1] << (f.work_bits - f.position_bits)]
+        d = (y[1:] - y[:-1]) << up
+        cols = [y[:-1] << up]
         if f.degree == 1:
             cols.append(d)
         else:
@@ -196,27 +198,31 @@ class CamTable:
                     -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
                     6 * d - 3 * a0 - 3 * a1 - b0 + b1,
                 ]
-        rows = np.ascontiguousarray(np.stack(cols, axis=1))
-        rows.setflags(write=False)
-        object.__setattr__(self, "_coefficients", rows)
-        return rows
+        cols = tuple(np.ascontiguousarray(c) for c in cols)
+        for c in cols:
+            c.setflags(write=False)
+        object.__setattr__(self, "_coefficients", cols)
+        return cols
 
     def _locate(self, master_counts):
         m = _as_counts(master_counts)
         f = self.format
         if f.periodic:
             local = np.mod(m, f.master_counts)  # exact floor modulo (C: reciprocal + correction)
-            below = above = None
+            outside = None
         else:
-            below, above = m < 0, m >= f.master_counts
+            outside = (m < 0, m >= f.master_counts)
             local = np.clip(m, 0, f.master_counts - 1)
+        local = np.atleast_1d(local)
         if f.step_shift >= 0:
             index = local >> f.step_shift
-            tau = local & (f.step_counts - 1)
+            tau = np.bitwise_and(local, f.step_counts - 1, out=local)
         else:
             index = local // f.step_counts  # exact quotient (C: reciprocal + correction)
-            tau = ((local - index * f.step_counts) * f.tau_recip) >> 32
-        return m, index, tau, below, above
+            local -= index * f.step_counts
+            np.multiply(local, f.tau_recip, out=local)
+            tau = np.right_shift(local, 32, out=local)
+        return index, tau, outside
 
     def lookup(self, master_counts, *, with_slope: bool = False):
         """Slave position in counts at ``master_counts`` (any int64; periodic cams wrap).
@@ -233,27 +239,38 @@ class CamTable:
         -------
         numpy.ndarray of int64 (or int for a scalar), and the slope array if ``with_slope``.
         """
-        m, index, tau, below, above = self._locate(master_counts)
+        index, tau, outside = self._locate(master_counts)
         f = self.format
-        rows = self._coefficient_rows()[index]
-        n, shift = f.degree, f.tau_bits
-        r = rows[..., n]
-        for k in range(n - 1, 0, -1):
-            r = rows[..., k] + ((r * tau) >> shift)
-        w = f.work_bits
-        half = (1 << (w - 1)) if w > 0 else 0
-        position = (rows[..., 0] + ((r * tau) >> shift) + half) >> w
-        if below is not None:
-            position = np.where(below, self._end_position(0), np.where(above, self._end_position(-1), position))
+        cols = self._coefficient_rows()
+        n, shift, w = f.degree, f.tau_bits, f.work_bits
+        # Horner, in place: r = c_k + asr(r * tau, F); every shift floors (numpy >> on int64)
+        r = np.take(cols[n], index)
+        for k in range(n - 1, -1, -1):
+            np.multiply(r, tau, out=r)
+            np.right_shift(r, shift, out=r)
+            r += np.take(cols[k], index)
+        if w:
+            r += 1 << (w - 1)
+            np.right_shift(r, w, out=r)
+        position = r
+        if outside is not None:
+            below, above = np.atleast_1d(outside[0]), np.atleast_1d(outside[1])
+            position[below] = self._end_position(0)
+            position[above] = self._end_position(-1)
+        position = _unwrap(position, master_counts)
         if not with_slope:
-            return _unwrap(position, master_counts)
-        q = n * rows[..., n]
+            return position
+        q = np.take(cols[n], index) * n
         for k in range(n - 1, 0, -1):
-            q = k * rows[..., k] + ((q * tau) >> shift)
-        slope = ((q >> f.slope_preshift) * f.tau_recip) >> (SLOPE_BITS + shift + f.work_bits - f.slope_preshift)
-        if below is not None:
-            slope = np.where(below | above, 0, slope)
-        return _unwrap(position, master_counts), _unwrap(slope, master_counts)
+            np.multiply(q, tau, out=q)
+            np.right_shift(q, shift, out=q)
+            q += np.take(cols[k], index) * k
+        np.right_shift(q, f.slope_preshift, out=q)
+        np.multiply(q, f.tau_recip, out=q)
+        np.right_shift(q, SLOPE_BITS + shift + w - f.slope_preshift, out=q)
+        if outside is not None:
+            q[np.atleast_1d(outside[0]) | np.atleast_1d(outside[1])] = 0
+        return position, _unwrap(q, master_counts)
 
     def _end_position(self, index: int) -> int:
         qy = self.format.position_bits
@@ -341,4 +358,4 @@ def _as_counts(master_counts) -> np.ndarray:
 
 
 def _unwrap(values, original):
-    return int(values) if np.ndim(original) == 0 else values
+    return int(values[0]) if np.ndim(original) == 0 else values

@@ -47,7 +47,8 @@ HEADER_FIELDS = (
     ("points", "I"),
     ("master_counts", "I"),
     ("step_counts", "I"),
-    ("reserved_28", "I"),
+    ("position_bits", "B"),
+    ("reserved_29", "3s"),
     ("tau_recip", "Q"),
     ("payload_bytes", "I"),
     ("payload_crc32", "I"),
@@ -87,6 +88,7 @@ class Table:
     slope_bits: int
     curvature_bits: int
     slope_preshift: int
+    position_bits: int
     position: tuple
     slope: tuple = ()
     curvature: tuple = ()
@@ -138,7 +140,8 @@ class Table:
             "points": self.points,
             "master_counts": self.master_counts,
             "step_counts": self.step_counts,
-            "reserved_28": 0,
+            "position_bits": self.position_bits,
+            "reserved_29": bytes(3),
             "tau_recip": self.tau_recip,
             "payload_bytes": len(payload),
             "payload_crc32": zlib.crc32(payload),
@@ -198,7 +201,7 @@ def coefficients(table: Table, i: int) -> list:
     """Step 4: [None, c1, ..., cn] of interval i in Q(W), each checked against int64."""
     W = table.work_bits
     y0, y1 = table.position[i], table.position[i + 1]
-    D = _i64(_i64(y1 - y0) * 2**W)
+    D = _i64(_i64(y1 - y0) * 2 ** (W - table.position_bits))
     if table.degree == 1:
         return [None, D]
     a0 = _i64(table.slope[i] * 2 ** (W - table.slope_bits))
@@ -227,14 +230,15 @@ def reference_lookup(table: Table, m: int) -> tuple:
     """(position, slope) of master position m, by the letter of FORMAT.md, in Python ints."""
     M, N, h = table.master_counts, table.intervals, table.step_counts
     F, W, P, R = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip
-    n = table.degree
+    Qy, n = table.position_bits, table.degree
     # 1. Range.
+    halfy = 2 ** (Qy - 1) if Qy > 0 else 0
     if table.periodic:
         m_local = m % M  # Python's % is floor modulo: 0 <= m_local < M
     elif m < 0:
-        return table.position[0], 0
+        return _i32(asr(_i64(table.position[0] + halfy), Qy)), 0
     elif m >= M:
-        return table.position[N], 0
+        return _i32(asr(_i64(table.position[N] + halfy), Qy)), 0
     else:
         m_local = m
     # 2. Interval.
@@ -250,8 +254,9 @@ def reference_lookup(table: Table, m: int) -> tuple:
     r = c[n]
     for k in range(n - 1, 0, -1):
         r = _i64(c[k] + asr(_i64(r * tau), F))
-    half = 2 ** (F + W - 1) if F + W > 0 else 0
-    position = _i32(table.position[i] + asr(_i64(_i64(r * tau) + _i64(half)), F + W))
+    half = 2 ** (W - 1) if W > 0 else 0
+    y0 = _i64(table.position[i] * 2 ** (W - Qy))
+    position = _i32(asr(_i64(_i64(y0 + asr(_i64(r * tau), F)) + half), W))
     # 6. Slope.
     q = _i64(n * c[n])
     for k in range(n - 1, 0, -1):
@@ -273,11 +278,12 @@ def certify(table: Table) -> None:
     linear combination is bounded by the sum of the magnitudes of its terms.
     """
     F, W, P, R, n = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip, table.degree
-    half = 2 ** (F + W - 1) if F + W > 0 else 0
+    Qy = table.position_bits
+    half = 2 ** (W - 1) if W > 0 else 0
     lim = INT64_MAX  # |x| <= INT64_MAX implies x is an int64
     tau_max = 2**F - 1
     out_shift = SLOPE_FRACTION_BITS + F + W - P
-    if not (0 <= out_shift <= 63 and F + W <= 63):
+    if not (0 <= out_shift <= 63 and Qy <= W):
         raise OverflowError("shift counts out of range")
     if (table.step_counts - 1) * R > lim:
         raise OverflowError("t * R")
@@ -293,11 +299,14 @@ def certify(table: Table) -> None:
             slope_tail += k * mags[k]
             if position_tail > lim or slope_tail > lim or k * mags[k] > lim:
                 raise OverflowError(f"Horner sum, interval {i}")
-        if position_tail * tau_max > lim or position_tail * tau_max + half > lim:
+        # position = asr(Y0 * 2^(W-Qy) + e + half, W) with |e| = |asr(r * tau, F)| <= tail
+        if position_tail * tau_max > lim:
+            raise OverflowError(f"final position product, interval {i}")
+        y0 = table.position[i] * 2 ** (W - Qy)
+        low, high = y0 - position_tail, y0 + position_tail + half
+        if abs(y0) > lim or low < INT64_MIN or high > lim:
             raise OverflowError(f"final position sum, interval {i}")
-        step = -(-(position_tail * tau_max + half) // 2 ** (F + W))  # ceil, >= |asr(.)|
-        y0 = table.position[i]
-        if not (INT32_MIN <= y0 - step and y0 + step <= INT32_MAX):
+        if not (INT32_MIN <= low >> W and high >> W <= INT32_MAX):
             raise OverflowError(f"position output, interval {i}")
         scaled = -(-slope_tail // 2**P)  # >= |asr(q, P)|
         if scaled * R > lim:
@@ -310,7 +319,7 @@ def _coefficient_magnitudes(table: Table, i: int) -> list:
     """Upper bounds of |c_k| for interval i, checking every term and partial sum of step 4."""
     W = table.work_bits
     y0, y1 = table.position[i], table.position[i + 1]
-    D = abs(y1 - y0) * 2**W
+    D = abs(y1 - y0) * 2 ** (W - table.position_bits)
     if table.degree == 1:
         _bounded([D])
         return [None, D]
@@ -350,12 +359,13 @@ def random_table(
     intervals: int,
     tau_bits: int | None = None,
     work_bits: int | None = None,
+    position_bits: int | None = None,
     delta_bits: int | None = None,
 ) -> Table:
     """A random table with valid header fields whose lookups provably stay in range.
 
-    tau_bits (non-power-of-two steps only), work_bits and delta_bits (log2 of the largest
-    position change per interval) are drawn at random unless given.
+    tau_bits (non-power-of-two steps only), work_bits, position_bits and delta_bits (log2 of the
+    largest position change per interval, in whole counts) are drawn at random unless given.
     """
     M, N = master_counts, intervals
     h = M // N
@@ -374,18 +384,29 @@ def random_table(
             db = max(0, int(rng.integers(0, min(24, log_h + 12) + 1)) - shrink)
         else:
             db = delta_bits
-        w_max = max(0, min(40, 62 - F - db - 8))
-        if degree == 1:
-            W = 0
+        if position_bits is not None:
+            Qy = position_bits
         else:
-            W = int(rng.integers(0, w_max + 1)) if work_bits is None else work_bits
+            Qy = int(rng.integers(0, min(30, 40 if work_bits is None else work_bits) + 1))
+        stored_db = min(db + Qy, 28)  # stored positions stay within +-2^30
+        if degree == 1:
+            W = Qy
+        elif work_bits is not None:
+            W = work_bits
+        else:
+            W = Qy + int(rng.integers(0, max(0, min(40 - Qy, 31, 54 - F - stored_db)) + 1))
         Qa = 0 if degree == 1 else int(rng.integers(0, W + 1))
         Qb = int(rng.integers(0, W + 1)) if degree == 5 else 0
-        position = _random_walk(rng, N + 1, db)
-        slope = _random_ints(rng, N + 1, db + Qa + 1) if degree >= 3 else ()
-        curvature = _random_ints(rng, N + 1, db + Qb) if degree == 5 else ()
+        real_db = stored_db - Qy
+        position = _random_walk(rng, N + 1, stored_db)
+        slope = _random_ints(rng, N + 1, real_db + Qa + 1) if degree >= 3 else ()
+        curvature = _random_ints(rng, N + 1, real_db + Qb) if degree == 5 else ()
         for P in _preshift_candidates(rng, F, W):
-            table = Table(degree, periodic, M, F, W, Qa, Qb, P, position, slope, curvature)
+            table = Table(
+                degree=degree, periodic=periodic, master_counts=M, tau_bits=F, work_bits=W,
+                slope_bits=Qa, curvature_bits=Qb, slope_preshift=P, position_bits=Qy,
+                position=position, slope=slope, curvature=curvature,
+            )  # fmt: skip
             try:
                 certify(table)
             except OverflowError:
@@ -403,12 +424,12 @@ def _preshift_candidates(rng: np.random.Generator, F: int, W: int) -> list:
 
 
 def _random_ints(rng: np.random.Generator, count: int, bits: int) -> tuple:
-    bits = min(bits, 31)
+    bits = max(0, min(bits, 31))
     return tuple(int(v) for v in rng.integers(-(2**bits) + 1, 2**bits, size=count))
 
 
 def _random_walk(rng: np.random.Generator, count: int, delta_bits: int) -> tuple:
-    """Positions within +-2^29 whose neighbours differ by less than 2^delta_bits."""
+    """Stored positions within +-2^30 whose neighbours differ by less than 2^delta_bits."""
     y = int(rng.integers(-(2**28), 2**28))
     out = [y]
     for _ in range(count - 1):
@@ -434,22 +455,33 @@ def edge_queries(table: Table) -> list:
 
 
 def random_queries(rng: np.random.Generator, table: Table, count: int) -> np.ndarray:
-    """``count`` int64 master positions: all edges, then a mix of wide and near-edge values."""
+    """``count`` int64 master positions: all edges first, then a mix of wide and near-edge values.
+
+    For non-periodic tables two of the six parts are drawn inside [0, M], where the interpolation
+    happens, instead of across all periods.
+    """
     M, h, N = table.master_counts, table.step_counts, table.intervals
     edges = np.array(edge_queries(table), dtype=np.int64)
     rest = count - len(edges)
-    k = rest // 5
+    k = rest // 6
     wide = rng.integers(INT64_MIN, INT64_MAX, size=k, dtype=np.int64, endpoint=True)
     local = rng.integers(-3 * M, 4 * M, size=k, dtype=np.int64)
     # Near a period or interval boundary, at any of the representable periods.
-    periods = rng.integers(-(2**63 // M), INT64_MAX // M, size=k, dtype=np.int64)
+    if table.periodic:
+        periods = rng.integers(-(2**63 // M), INT64_MAX // M, size=k, dtype=np.int64)
+    else:
+        periods = np.zeros(k, dtype=np.int64)
     boundary = periods * M + rng.integers(0, N + 1, size=k, dtype=np.int64) * h
     boundary = _clip_add(boundary, rng.integers(-2, 3, size=k, dtype=np.int64))
     # Near +-2^31, +-2^32 and the ends of int64.
     centres = np.array([2**31, -(2**31), 2**32, -(2**32), INT64_MIN, INT64_MAX], dtype=np.int64)
-    near = _clip_add(rng.choice(centres, size=k), rng.integers(-4 * M, 4 * M + 1, size=k, dtype=np.int64))
-    small = rng.integers(-(2**40), 2**40, size=rest - 4 * k, dtype=np.int64)
-    return np.concatenate([edges, wide, local, boundary, near, small])
+    spread = rng.integers(-4 * M, 4 * M + 1, size=k, dtype=np.int64)
+    near = _clip_add(rng.choice(centres, size=k), spread)
+    mid = rng.integers(-(2**40), 2**40, size=k, dtype=np.int64)
+    inside = rng.integers(0, M, size=rest - 5 * k, dtype=np.int64)
+    if table.periodic:
+        inside = rng.integers(INT64_MIN // 2, INT64_MAX // 2, size=inside.size, dtype=np.int64)
+    return np.concatenate([edges, wide, local, boundary, near, mid, inside])
 
 
 def _clip_add(a: np.ndarray, d: np.ndarray) -> np.ndarray:

@@ -1,0 +1,255 @@
+"""The tracking report of a rig run: checks with limits, JSON, text and plots.
+
+The JSON (:meth:`Report.to_json`) is deterministic: the same scene gives the same bytes. Wall
+time (real-time factor, where the time went) is measured too, but kept apart under
+``timing``: it is printed in the text report and added to the JSON only on request.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ecam.errors import InputError
+
+
+@dataclass(frozen=True)
+class Check:
+    """One line of the report: a measured value against its limit.
+
+    Attributes
+    ----------
+    name : str
+        Stable identifier, e.g. ``"tracking_error"``.
+    value : float or None
+        Measured value (None when it cannot be measured, e.g. no samples).
+    limit : float or None
+        Limit; None for an informational check, which always passes.
+    passed : bool
+    unit : str
+    detail : str
+        Where or why, one line (e.g. the master position of the worst sample).
+    """
+
+    name: str
+    value: float | None
+    limit: float | None
+    passed: bool
+    unit: str
+    detail: str = ""
+
+    @property
+    def ratio(self) -> float | None:
+        """value / limit, when both are known and the limit is not zero."""
+        if self.value is None or self.limit is None or self.limit == 0:
+            return None
+        return self.value / self.limit
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "value": _clean(self.value), "limit": _clean(self.limit),
+                "passed": self.passed, "unit": self.unit, "ratio": _clean(self.ratio),
+                "detail": self.detail}
+
+    def line(self) -> str:
+        """One line of text: verdict, value, limit and by how much it is exceeded."""
+        value = "n/a" if self.value is None else f"{self.value:.6g}"
+        if self.limit is None:
+            text = f"info  {self.name}: {value} {self.unit} (no limit)"
+        else:
+            verdict = "PASS" if self.passed else "FAIL"
+            text = f"{verdict}  {self.name}: {value} {self.unit}, limit {self.limit:.6g} {self.unit}"
+            if not self.passed and self.ratio is not None:
+                text += f" (exceeded by {100.0 * (self.ratio - 1.0):.3g} %, x{self.ratio:.3g})"
+        return text + (f"; {self.detail}" if self.detail else "")
+
+
+def check(name: str, value, limit, unit: str, detail: str = "") -> Check:
+    """A check that passes when ``value <= limit`` (always, when ``limit`` is None)."""
+    value = None if value is None else float(value)
+    limit = None if limit is None else float(limit)
+    passed = limit is None or (value is not None and value <= limit)
+    return Check(name, value, limit, passed, unit, detail)
+
+
+@dataclass
+class Report:
+    """What a scene run found.
+
+    Attributes
+    ----------
+    scene : str
+        Scene name.
+    model, model_reason : str
+        Plant model that ran and why (from :func:`hil_sim.plant.choose_model`).
+    cycles : int
+        Bus cycles simulated (fewer than planned when a fault stopped the run).
+    checks : list of Check
+    summary : dict
+        Everything else that goes into the JSON (master, table, mechanics, bus, faults).
+    timing : dict
+        Wall-clock measurements; not part of the deterministic JSON.
+    series : dict of str to numpy.ndarray
+        Per-cycle records for plots (not serialized).
+    """
+
+    scene: str
+    model: str
+    model_reason: str
+    cycles: int
+    checks: list[Check]
+    summary: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    series: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        """True when every check passed."""
+        return all(c.passed for c in self.checks)
+
+    @property
+    def failed(self) -> list[Check]:
+        """The checks that failed."""
+        return [c for c in self.checks if not c.passed]
+
+    def check(self, name: str) -> Check:
+        """The check called ``name`` (KeyError if there is none)."""
+        for item in self.checks:
+            if item.name == name:
+                return item
+        raise KeyError(name)
+
+    def to_dict(self, timing: bool = False) -> dict:
+        """The report as plain data; ``timing=True`` adds the wall-clock section."""
+        out = {"scene": self.scene, "model": self.model, "model_reason": self.model_reason,
+               "cycles": self.cycles, "passed": self.passed,
+               "failed": [c.name for c in self.failed],
+               "checks": [c.to_dict() for c in self.checks]}
+        out.update(_clean(self.summary))
+        if timing:
+            out["timing"] = _clean(self.timing)
+        return out
+
+    def to_json(self, timing: bool = False) -> str:
+        """Deterministic JSON (sorted keys, floats to 10 significant digits) unless ``timing``."""
+        return json.dumps(self.to_dict(timing=timing), indent=2, sort_keys=True,
+                          allow_nan=False) + "\n"
+
+    def to_text(self) -> str:
+        """A human summary: verdict, model, every check, bus and timing."""
+        lines = [f"scene {self.scene}: {'PASSED' if self.passed else 'FAILED'} after "
+                 f"{self.cycles} cycles"
+                 + (f" ({', '.join(c.name for c in self.failed)} failed)" if self.failed else ""),
+                 f"model: {self.model_reason}"]
+        stopped = self.summary.get("stopped_early")
+        if stopped:
+            lines.append(f"stopped early: {stopped}")
+        lines += ["  " + c.line() for c in self.checks]
+        bus = self.summary.get("bus", {})
+        if bus:
+            lines.append(f"bus: {bus.get('bitrate')} bit/s, {bus.get('budget_bits')} bits per "
+                         f"cycle, peak {bus.get('peak_percent', 0):.3g} %, mean "
+                         f"{bus.get('mean_percent', 0):.3g} %, {bus.get('overrun_cycles')} "
+                         "cycles over budget")
+        if self.timing:
+            t = self.timing
+            lines.append(f"time: {t.get('simulated_s', 0):.4g} s simulated in "
+                         f"{t.get('wall_s', 0):.3g} s wall, real-time factor "
+                         f"{t.get('real_time_factor', 0):.3g}x (loop {t.get('loop_s', 0):.3g} s: "
+                         f"servo/plant {t.get('axis_s', 0):.3g} s, bus+CANopen "
+                         f"{t.get('protocol_s', 0):.3g} s; setup {t.get('setup_s', 0):.3g} s, "
+                         f"analysis {t.get('analysis_s', 0):.3g} s)")
+        return "\n".join(lines) + "\n"
+
+    def plot(self, path) -> None:
+        """Save the plots to ``path`` (see :func:`plot_report`)."""
+        plot_report(self, path)
+
+
+def plot_report(report: Report, path) -> None:
+    """Tracking error, coupling torque with its limits, and following error, in one figure.
+
+    matplotlib is imported here, and only here, with the non-interactive Agg backend.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = report.series
+    time_s = s["time_s"]
+    units = report.summary.get("units", {})
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), constrained_layout=True)
+    ax = axes[0]
+    ax.plot(time_s, s["tracking_error"], lw=0.8)
+    _limit_lines(ax, _limit(report, "tracking_error"), s["tracking_error"])
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"load tracking error [{units.get('slave', '')}]")
+    ax.set_title(f"{report.scene}: {report.model} model, "
+                 f"{'passed' if report.passed else 'failed'}")
+    ax = axes[1]
+    ax.plot(time_s, s["coupling_torque"], lw=0.8, label="coupling torque")
+    mechanics = report.summary.get("mechanics", {})
+    for key, style in (("coupling_rated_torque", ":"), ("coupling_max_torque", "--")):
+        value = mechanics.get(key)
+        if value:
+            for sign in (1, -1):
+                ax.axhline(sign * value, color="tab:red", ls=style, lw=0.8,
+                           label=key.replace("_", " ") if sign > 0 else None)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("torque [N m]")
+    ax.legend(loc="upper right", fontsize="small")
+    ax = axes[2]
+    ax.plot(s["master_position"], s["following_error"], ".", ms=1.5)
+    _limit_lines(ax, _limit(report, "following_error"), s["following_error"])
+    ax.set_xlabel(f"master position in the cam period [{units.get('master', '')}]")
+    ax.set_ylabel("following error [counts]")
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise InputError(f"plot file {str(path)!r} cannot be written: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+
+
+def _limit_lines(ax, limit, data) -> None:
+    """Dashed +-limit lines, unless the limit is so far away that the data would be a flat line
+    (then the limit goes into the legend only)."""
+    if limit is None:
+        return
+    finite = np.abs(np.asarray(data, dtype=float))
+    finite = finite[np.isfinite(finite)]
+    peak = float(finite.max()) if finite.size else 0.0
+    if limit <= 5.0 * peak:
+        for sign in (1, -1):
+            ax.axhline(sign * limit, color="tab:red", ls="--", lw=0.8,
+                       label=f"limit {limit:.4g}" if sign > 0 else None)
+    else:
+        ax.plot([], [], color="tab:red", ls="--", lw=0.8, label=f"limit {limit:.4g} (off scale)")
+    ax.legend(loc="upper right", fontsize="small")
+
+
+def _limit(report: Report, name: str):
+    try:
+        return report.check(name).limit
+    except KeyError:
+        return None
+
+
+def _clean(value):
+    """JSON-ready copy: numpy scalars to Python, floats to 10 significant digits, NaN to None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        if not math.isfinite(value):
+            return None
+        return float(f"{value:.10g}")
+    return value

@@ -1,0 +1,269 @@
+"""The rig end to end: scenes in, reports out; bus model, fault injection, command line."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from ecam.errors import CamFileError, InputError
+from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, Faults, frame_bits
+from hil_sim.cli import main
+from hil_sim.rig import find_max_speed, run_scene
+from hil_sim.scene import DurationSpec, load_scene, parse_scene
+
+SCENES = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
+
+
+def scene(name, **changes):
+    """A shipped scene, optionally shortened or changed (duration=..., bus=..., ...)."""
+    loaded = load_scene(SCENES / f"{name}.toml")
+    return replace(loaded, **changes)
+
+
+def short(name, cycles=400, **changes):
+    return scene(name, duration=DurationSpec(cycles=cycles), **changes)
+
+
+@pytest.fixture(scope="module")
+def stiff():
+    return run_scene(SCENES / "stiff_coupling.toml")
+
+
+@pytest.fixture(scope="module")
+def soft():
+    return run_scene(SCENES / "soft_coupling.toml")
+
+
+# ---------------------------------------------------------------------------------------------
+# Shipped scenes
+
+def test_stiff_scene_passes_on_the_rigid_model(stiff):
+    assert stiff.passed, stiff.to_text()
+    assert stiff.model == "rigid"
+    assert "2641 Hz" in stiff.model_reason  # the coupling mode, and why rigid is faithful
+    data = json.loads(stiff.to_json())
+    assert {"model", "cycles", "passed", "checks"} <= set(data)
+    assert data["cycles"] == 2000 and data["passed"] is True
+    for item in data["checks"]:
+        assert {"name", "value", "limit", "passed", "unit"} <= set(item)
+    names = [c["name"] for c in data["checks"]]
+    assert names == ["following_error", "tracking_error", "coupling_peak_torque",
+                     "coupling_rms_torque", "wind_up", "resonance_excitation", "bus_load",
+                     "motor_saturation", "faults"]
+    assert stiff.check("tracking_error").value < 0.001  # in
+    assert 40.0 < stiff.check("bus_load").value < 60.0  # % at 1 Mbit/s
+    assert "timing" not in data
+
+
+def test_soft_scene_fails_and_says_which_check_by_how_much(soft):
+    assert not soft.passed
+    assert soft.model == "two_mass"
+    failed = {c.name for c in soft.failed}
+    assert "tracking_error" in failed and "wind_up" in failed
+    tracking = soft.check("tracking_error")
+    assert tracking.ratio > 2.0  # well over the limit, not a rounding matter
+    text = soft.to_text()
+    assert "FAIL  tracking_error" in text and "exceeded by" in text
+    data = json.loads(soft.to_json())
+    assert data["passed"] is False and "tracking_error" in data["failed"]
+
+
+def test_same_scene_gives_byte_identical_json(stiff):
+    again = run_scene(SCENES / "stiff_coupling.toml")
+    assert again.to_json() == stiff.to_json()
+    assert again.timing["wall_s"] > 0  # measured, but not in the JSON
+
+
+def test_faulty_bus_run_is_deterministic_too():
+    faulty = short("soft_coupling", cycles=300, bus=replace(
+        load_scene(SCENES / "soft_coupling.toml").bus,
+        faults=Faults(seed=3, kinds=("rpdo", "tpdo", "sync"), drop_probability=0.05,
+                      delay_probability=0.05, delay_cycles=2, sync_jitter_s=50e-6)))
+    first, second = run_scene(faulty), run_scene(faulty)
+    assert first.to_json() == second.to_json()
+    assert first.cycles == 300
+    dropped = first.summary["bus"]["faults"]["dropped"]
+    assert dropped["sync"] > 0 and dropped["rpdo"] > 0 and dropped["tpdo"] > 0
+    assert first.summary["bus"]["missing_status_samples"] > 0
+
+
+def test_drive_side_scene_downloads_the_table_and_passes():
+    report = run_scene(SCENES / "drive_side.toml")
+    assert report.passed, report.to_text()
+    download = report.summary["bus"]["download"]
+    assert download["bytes"] == report.summary["table"]["bytes"]
+    assert download["frames"] >= 2 * download["bytes"] / 7  # segmented: a request and an answer
+    assert report.summary["cam_mode"] == "drive"
+
+
+def test_drive_side_and_controller_side_track_alike():
+    drive_side = short("drive_side", cycles=600)
+    controller = replace(drive_side, cam_mode="controller")
+    a, b = run_scene(drive_side), run_scene(controller)
+    ta, tb = a.check("tracking_error").value, b.check("tracking_error").value
+    assert ta == pytest.approx(tb, rel=0.2)  # the same cam, looked up on either side
+
+
+def test_cam_in_scene_engages_and_passes():
+    report = run_scene(SCENES / "cam_in.toml")
+    assert report.passed, report.to_text()
+    assert report.summary["master"]["profile"] == "cam_in"
+
+
+def test_start_stop_master_runs():
+    base = load_scene(SCENES / "stiff_coupling.toml")
+    master = replace(base.master, profile="start_stop", max_acceleration=2000.0,
+                     max_jerk=50000.0, start_s=0.05, stop_s=0.6)
+    report = run_scene(replace(base, master=master, duration=DurationSpec(seconds=1.0)))
+    assert report.passed, report.to_text()
+    assert report.cycles == 1000
+
+
+# ---------------------------------------------------------------------------------------------
+# Bus load and faults
+
+def test_frame_bits_worst_case_stuffing():
+    assert frame_bits(0) == 55  # SYNC
+    assert frame_bits(8) == 135
+    assert frame_bits(8, stuffing=False) == 111
+    with pytest.raises(InputError):
+        frame_bits(9)
+
+
+@given(st.integers(0, 8))
+def test_frame_bits_grow_by_8_to_10_bits_per_byte(n):
+    if n < 8:
+        assert 8 <= frame_bits(n + 1) - frame_bits(n) <= 10
+    assert frame_bits(n) - frame_bits(n, stuffing=False) == (34 + 8 * n - 1) // 4
+
+
+def test_bus_load_counts_and_flags_overruns():
+    load = BusLoad(250_000, 0.001)  # 250 bits per cycle
+    for frames in ([8, 0], [8, 8]):  # 190 bits, then 270 bits
+        for n in frames:
+            load.add_frame(n)
+        load.end_cycle()
+    summary = load.summary()
+    assert summary["budget_bits"] == 250
+    assert summary["overrun_cycles"] == 1 and summary["first_overrun_cycle"] == 1
+    assert summary["peak_percent"] == pytest.approx(108.0)
+
+
+def test_low_bitrate_is_flagged():
+    base = load_scene(SCENES / "stiff_coupling.toml")
+    report = run_scene(replace(base, duration=DurationSpec(cycles=200),
+                               bus=replace(base.bus, bitrate=250_000)))
+    bus = report.check("bus_load")
+    assert not bus.passed and bus.value > 100.0
+    assert report.summary["bus"]["overrun_cycles"] == 200
+    assert "bus_load" in [c.name for c in report.failed]
+
+
+def test_fault_injector_is_reproducible_and_honours_explicit_drops():
+    faults = Faults(seed=9, kinds=("rpdo",), drop_probability=0.3, delay_probability=0.3,
+                    delay_cycles=3, drop=((5, "sync"),))
+    fates = []
+    for _ in range(2):
+        injector = FaultInjector(faults, 0.001)
+        fates.append([injector.decide(k, kind) for k in range(50) for kind in ("sync", "rpdo")])
+    assert fates[0] == fates[1]
+    assert fates[0][10] == DROP  # cycle 5, sync
+    assert all(f == DELIVER for i, f in enumerate(fates[0]) if i % 2 == 0 and i != 10)
+    assert {f for f in fates[0]} >= {DELIVER, DROP, 1}
+    assert max(fates[0]) <= 3
+    jitter = FaultInjector(Faults(seed=1, sync_jitter_s=1e-4), 0.001).sync_offsets(1000)
+    assert np.abs(jitter).max() <= 1e-4 and np.abs(jitter).max() > 0.9e-4
+
+
+def test_dropped_syncs_and_jitter_still_give_a_report():
+    base = load_scene(SCENES / "stiff_coupling.toml")
+    faults = Faults(seed=1, drop=((100, "sync"), (101, "sync"), (150, "rpdo")),
+                    sync_jitter_s=100e-6)
+    report = run_scene(replace(base, duration=DurationSpec(cycles=300),
+                               bus=replace(base.bus, faults=faults)))
+    assert report.cycles == 300
+    assert report.summary["bus"]["faults"]["dropped"]["sync"] == 2
+    assert report.summary["bus"]["missing_status_samples"] == 2  # no TPDO without SYNC
+    assert report.check("tracking_error").value > 0
+
+
+def test_a_drive_fault_stops_the_run_and_is_reported():
+    base = load_scene(SCENES / "soft_coupling.toml")
+    report = run_scene(replace(base, drive=replace(base.drive, following_error_window=20),
+                               duration=DurationSpec(cycles=2000)))
+    assert report.cycles < 2000
+    faults = report.check("faults")
+    assert not faults.passed and faults.value == 1
+    assert "0x8611" in report.summary["stopped_early"]
+    assert report.summary["faults"][0]["code"] == "0x8611"
+
+
+def test_find_max_speed_brackets_the_limit():
+    result = find_max_speed(short("soft_coupling", cycles=250), tolerance=0.05)
+    assert result["speed"] is not None and result["failing_speed"] is not None
+    assert result["speed"] < result["failing_speed"] <= 1.06 * result["speed"]
+    assert result["failed_checks"]
+    assert all(r["passed"] for r in result["runs"] if abs(r["speed"]) <= result["speed"])
+
+
+# ---------------------------------------------------------------------------------------------
+# Scenes: validation
+
+def test_scene_errors_name_field_value_and_expectation(tmp_path):
+    good = (SCENES / "stiff_coupling.toml").read_text()
+    cam = (SCENES / "stiff_coupling.toml").parent.joinpath(
+        "../../firmware_tables/cams/combination_drrd.toml").resolve()
+    good = good.replace('"../../firmware_tables/cams/combination_drrd.toml"', repr(str(cam)))
+    cases = {
+        "substeps = 4": ("substeps = 0", "drive.substeps: 0 should be an integer in 1..1000"),
+        "bitrate = 1000000": ("bitrate = 1000000\nbaud = 5", "bus.baud: unknown field"),
+        "tracking_error = 0.002 ": ("tracking_error = -1.0 ", "limits.tracking_error: -1.0 should be > 0"),
+        'profile = "constant"': ('profile = "sine"', "master.profile: 'sine' should be one of"),
+        "cycle_s = 0.001": ("cycle_s = 0.0003333", "drive.cycle_s: 0.0003333 should be n x 10^e"),
+        "coupling_stiffness = 2.0e6": ("coupling_stiffness = -2.0", "coupling_stiffness -2.0 should be > 0"),
+        "master_periods = 2.0": ("master_periods = 2.0\ncycles = 5", "exactly one of"),
+    }
+    for old, (new, message) in cases.items():
+        assert old in good, old
+        path = tmp_path / "bad.toml"
+        path.write_text(good.replace(old, new))
+        with pytest.raises(CamFileError) as error:
+            load_scene(path)
+        text = str(error.value)
+        assert message in text and "\n" not in text and text.startswith("scene bad.toml: ")
+
+
+def test_scene_cam_path_is_relative_to_the_scene(tmp_path):
+    with pytest.raises(CamFileError, match="cam.file: 'nope.toml' does not exist"):
+        parse_scene({"master": {"speed": 1.0}, "cam": {"file": "nope.toml"},
+                     "mechanics": {"motor_inertia": 1e-4}, "limits": {"tracking_error": 1.0},
+                     "duration": {"cycles": 10}}, base=tmp_path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+
+def test_cli_sim_json_and_exit_status(capsys, tmp_path):
+    plot = tmp_path / "plot.png"
+    status = main(["sim", str(SCENES / "stiff_coupling.toml"), "--json", "--plot", str(plot)])
+    out = capsys.readouterr().out
+    assert status == 0
+    data = json.loads(out)
+    assert data["passed"] is True and data["model"] == "rigid"
+    assert plot.stat().st_size > 10_000  # bytes of PNG
+    assert main(["sim", str(SCENES / "soft_coupling.toml")]) == 1
+    out = capsys.readouterr().out
+    assert "FAILED" in out and "real-time factor" in out
+
+
+def test_cli_bad_input_is_one_line_exit_2(capsys, tmp_path):
+    status = main(["sim", str(tmp_path / "missing.toml")])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert err.count("\n") == 1 and "does not exist" in err and "Traceback" not in err

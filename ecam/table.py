@@ -239,6 +239,8 @@ class CamTable:
         -------
         numpy.ndarray of int64 (or int for a scalar), and the slope array if ``with_slope``.
         """
+        if isinstance(master_counts, (int, np.integer)) and not isinstance(master_counts, (bool, np.bool_)):
+            return self._lookup_one(int(master_counts), with_slope)
         index, tau, outside = self._locate(master_counts)
         f = self.format
         cols = self._coefficient_rows()
@@ -271,6 +273,47 @@ class CamTable:
         if outside is not None:
             q[np.atleast_1d(outside[0]) | np.atleast_1d(outside[1])] = 0
         return position, _unwrap(q, master_counts)
+
+    def _lookup_one(self, m: int, with_slope: bool):
+        """The same arithmetic for one master position with Python integers: no numpy overhead
+        for a drive loop that asks once per cycle. Python's >> floors like asr, and the
+        compiler's overflow proof makes unbounded ints agree with int64."""
+        if not -(2**63) <= m < 2**63:
+            raise InputError(f"master_counts {m} should fit int64")
+        f = self.format
+        if f.periodic:
+            local = m % f.master_counts
+        elif m < 0 or m >= f.master_counts:
+            end = self._end_position(0 if m < 0 else -1)
+            return (end, 0) if with_slope else end
+        else:
+            local = m
+        if f.step_shift >= 0:
+            i, tau = local >> f.step_shift, local & (f.step_counts - 1)
+        else:
+            i = local // f.step_counts
+            tau = ((local - i * f.step_counts) * f.tau_recip) >> 32
+        rows = self._scalar_rows()
+        c = rows[i]
+        n, shift, w = f.degree, f.tau_bits, f.work_bits
+        r = c[n]
+        for k in range(n - 1, -1, -1):
+            r = c[k] + ((r * tau) >> shift)
+        position = (r + ((1 << (w - 1)) if w else 0)) >> w
+        if not with_slope:
+            return position
+        q = n * c[n]
+        for k in range(n - 1, 0, -1):
+            q = k * c[k] + ((q * tau) >> shift)
+        slope = ((q >> f.slope_preshift) * f.tau_recip) >> (SLOPE_BITS + shift + w - f.slope_preshift)
+        return position, slope
+
+    def _scalar_rows(self) -> list:
+        rows = getattr(self, "_rows_list", None)
+        if rows is None:
+            rows = list(zip(*(c.tolist() for c in self._coefficient_rows())))
+            object.__setattr__(self, "_rows_list", rows)
+        return rows
 
     def _end_position(self, index: int) -> int:
         qy = self.format.position_bits

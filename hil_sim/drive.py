@@ -748,10 +748,10 @@ class VirtualDrive:
         else:
             master = previous + _wrap_int32(raw - _wrap_int32(previous))
         self._master_unwrapped = master
-        positions, slopes = self._active_table.lookup(
-            np.array([(previous + master) // 2, master], dtype=np.int64), with_slope=True)
-        velocity = float(slopes[0]) * (master - previous) / (65536.0 * self.cycle_s)
-        return int(positions[1]), velocity
+        # two scalar lookups take the table's pure-integer path (no numpy overhead per cycle)
+        _, slope = self._active_table.lookup((previous + master) // 2, with_slope=True)
+        velocity = slope * (master - previous) / (65536.0 * self.cycle_s)
+        return self._active_table.lookup(master), velocity
 
     # ----------------------------------------------------------------------------- cycle
     def _on_sync(self, can_id, data, timestamp) -> None:

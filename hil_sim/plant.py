@@ -129,6 +129,37 @@ def zero_order_hold(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray
     return e[:n, :n].copy(), e[:n, n:].copy()
 
 
+def _unrolled_step(phi: np.ndarray, gamma: np.ndarray):
+    """x -> phi x + gamma u for a small n, as straight-line float arithmetic (same sums, same
+    order of terms as the matrix product, so the result does not depend on the path)."""
+    n = phi.shape[0]
+    rows = [[float(v) for v in row] for row in phi]
+    g = [float(v) for v in gamma]
+    if n == 2:
+        (a, b), (c, d) = rows
+        g0, g1 = g
+
+        def advance(x, u):
+            x0, x1 = x
+            return [a * x0 + b * x1 + g0 * u, c * x0 + d * x1 + g1 * u]
+        return advance
+    if n == 4:
+        (a0, a1, a2, a3), (b0, b1, b2, b3), (c0, c1, c2, c3), (d0, d1, d2, d3) = rows
+        g0, g1, g2, g3 = g
+
+        def advance(x, u):
+            x0, x1, x2, x3 = x
+            return [a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3 + g0 * u,
+                    b0 * x0 + b1 * x1 + b2 * x2 + b3 * x3 + g1 * u,
+                    c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3 + g2 * u,
+                    d0 * x0 + d1 * x1 + d2 * x2 + d3 * x3 + g3 * u]
+        return advance
+
+    def advance(x, u):
+        return [sum(r * xi for r, xi in zip(row, x)) + gi * u for row, gi in zip(rows, g)]
+    return advance
+
+
 class _LinearPlant:
     """Shared stepping of a ZOH-discretized plant; subclasses define A, B and the outputs."""
 
@@ -148,13 +179,16 @@ class _LinearPlant:
         self.phi = phi
         self.gamma = gamma[:, 0].copy()
         self.gamma.setflags(write=False)
-        self._x = np.zeros(phi.shape[0])
+        # The state is a list of floats and the step is unrolled: a 2x2 or 4x4 numpy product
+        # costs more in call overhead than the arithmetic, and the rig runs it 4..16 times a cycle.
+        self._advance = _unrolled_step(phi, self.gamma)
+        self._x = [0.0] * phi.shape[0]
         self._torque = 0.0
 
     @property
     def x(self) -> np.ndarray:
         """Copy of the internal state vector (see the class docstring for its layout)."""
-        return self._x.copy()
+        return np.array(self._x)
 
     @property
     def torque(self) -> float:
@@ -164,7 +198,7 @@ class _LinearPlant:
     def step(self, torque: float) -> None:
         """Advance one step of ``dt`` with the motor torque held at ``torque`` [N m]."""
         self._torque = float(torque)
-        self._x = self.phi @ self._x + self.gamma * self._torque
+        self._x = self._advance(self._x, self._torque)
 
     @property
     def motor_angle(self) -> float:
@@ -202,7 +236,7 @@ class RigidPlant(_LinearPlant):
 
     def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
         """Place the axis at ``motor_angle`` [rad] turning at ``motor_speed`` [rad/s]."""
-        self._x = np.array([float(motor_angle), float(motor_speed)])
+        self._x = [float(motor_angle), float(motor_speed)]
         self._torque = 0.0
 
     @property
@@ -278,7 +312,7 @@ class TwoMassPlant(_LinearPlant):
     def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
         """Place the axis at ``motor_angle`` [rad] turning at ``motor_speed`` [rad/s], no twist."""
         r = self.mechanics.gear_ratio
-        self._x = np.array([float(motor_angle), float(motor_speed), 0.0, r * float(motor_speed)])
+        self._x = [float(motor_angle), float(motor_speed), 0.0, r * float(motor_speed)]
         self._torque = 0.0
 
     @property

@@ -272,3 +272,19 @@ def test_generated_firmware_tables_are_reproducible():
         path = ROOT / "firmware_tables" / relative
         assert path.exists(), f"{relative} is not committed; run python3 -m ecam.firmware"
         assert path.read_bytes() == content, f"{relative} differs; run python3 -m ecam.firmware"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_scalar_path_matches_the_vectorized_lookup(kind, drrd):
+    """Single master positions take a pure-integer path; it must give the very same bits."""
+    for periodic_table in (compile_table(drrd, interp=kind, points=18 * 8 + 1),
+                           compile_table(drrd, interp=kind, points=361, master_counts=36000),
+                           compile_table(CamProfile((Segment(0, 90, 0, 10, ecam.law("cycloidal")),), 90.0, False),
+                                         interp=kind, points=65, master_counts=2**12, slave_counts_per_unit=1e3)):
+        rng = np.random.default_rng(5)
+        m = periodic_table.master_counts
+        queries = np.concatenate([rng.integers(-3 * m, 3 * m, 300), [0, m - 1, m, -1, 2**63 - 1, -(2**63)]])
+        position, slope = periodic_table.lookup(queries, with_slope=True)
+        for q, p, s in zip(queries.tolist(), position.tolist(), slope.tolist()):
+            assert periodic_table.lookup(q, with_slope=True) == (p, s)
+            assert periodic_table.lookup(np.int64(q)) == p

@@ -379,7 +379,14 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
         raise r.fail("cam.file", f"{_show(raw['file'])} should be a string")
     file = (base / raw["file"]).resolve()
     if not file.is_file():
-        raise r.fail("cam.file", f"{raw['file']!r} does not exist (resolved to {str(file)!r})")
+        # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
+        # also ecam's built-in cams, found by file name.
+        from ecam.cli import CAMS_DIR
+
+        built_in = CAMS_DIR / Path(raw["file"]).name
+        if not built_in.is_file():
+            raise r.fail("cam.file", f"{raw['file']!r} does not exist (resolved to {str(file)!r})")
+        file = built_in.resolve()
     interp = raw.get("interp")
     if interp is not None and interp not in INTERPS:
         raise r.fail("cam.interp", f"{_show(interp)} should be one of {', '.join(INTERPS)}")

@@ -17,7 +17,7 @@ Layout (units in the names or below; SI unless said otherwise)::
     profile = "constant"               # "constant", "start_stop" or "cam_in"
     # start_stop: max_acceleration (master units/s^2), max_jerk (units/s^3), start_s, stop_s
     # cam_in: engage_at (master units), slave_start (slave units), max_velocity (slave
-    #         units/s), max_acceleration (units/s^2), max_jerk (units/s^3)
+    #         units/s), slave_max_acceleration (units/s^2), slave_max_jerk (units/s^3)
 
     [cam]
     file = "../../firmware_tables/cams/combination_drrd.toml"   # relative to the scene file

@@ -361,11 +361,11 @@ def _jobs(plan: BenchPlan) -> list[dict]:
 def bench_rig(repeats: int = 1, cycles_hz=RIG_CYCLES_HZ, progress=None) -> list[dict]:
     """Rows of kind 'rig': the shipped scene at each bus cycle rate (never raises)."""
     try:
-        import hil_sim
+        from hil_sim.demo import SCENES_DIR
         from hil_sim.rig import run_scene
         from hil_sim.scene import load_scene
 
-        scene_path = Path(hil_sim.__file__).resolve().parent / "scenes" / RIG_SCENE
+        scene_path = SCENES_DIR / RIG_SCENE
         base = load_scene(scene_path)
     except Exception as exc:  # the rig is optional: report, never crash
         return [{"kind": "rig", "available": False, "cycle_hz": hz, "scene": RIG_SCENE,

@@ -72,6 +72,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import EcamError, InputError
+from .export import plain
 
 __all__ = [
     "run_bench", "plot_pareto", "pareto_front", "worst_over_cams", "evaluate_targets", "format_text", "main",
@@ -622,20 +623,9 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
                          "text": f"C runtime failed on {len(c_failures)} tables, first: {c_failures[0]}"})
     rows += bench_rig(plan.rig_repeats, progress=step)
     rows += evaluate_targets(rows)
-    return [_plain(row) for row in rows]
+    return [plain(row) for row in rows]
 
 
-def _plain(value):
-    """JSON-safe: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 # --- Pareto fronts and the plot -------------------------------------------------------------------

@@ -11,7 +11,7 @@ from .errors import CamFileError, InputError
 from .laws import law as _law, polynomial_from_boundary
 from .profile import CamProfile, Segment
 
-__all__ = ["load_cam", "parse_cam"]
+__all__ = ["load_cam", "parse_cam", "read_toml"]
 
 _TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "table", "segment"}
 _TABLE_KEYS = {"interp", "points", "tolerance", "master_counts", "slave_counts_per_unit"}
@@ -33,17 +33,22 @@ def load_cam(path) -> CamProfile:
         One line naming the field, the value and what was expected.
     """
     path = Path(path)
+    return parse_cam(read_toml(path, "cam file"), source=str(path))
+
+
+def read_toml(path, what: str) -> dict:
+    """Parse a TOML file; a missing, unreadable or malformed file is one CamFileError line."""
+    path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise CamFileError(f"cam file {str(path)!r} does not exist") from None
+        raise CamFileError(f"{what} {str(path)!r} does not exist") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise CamFileError(f"cam file {str(path)!r} cannot be read: {exc}") from None
+        raise CamFileError(f"{what} {str(path)!r} cannot be read: {exc}") from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise CamFileError(f"cam file {str(path)!r} is not valid TOML: {exc}") from None
-    return parse_cam(data, source=str(path))
+        raise CamFileError(f"{what} {str(path)!r} is not valid TOML: {exc}") from None
 
 
 def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:

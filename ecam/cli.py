@@ -157,19 +157,11 @@ def table_summary(table, files) -> dict:
             "interpolation_error_counts", "max_error_at_master", "max_error_at_master_counts", "evaluated",
             "master_counts", "step_counts", "slave_counts_per_unit", "joints_off_points", "format",
             "max_slope_error_counts_per_count", "tolerance_units"]
-    out = {k: _plain(r[k]) for k in keys if k in r}
+    from .export import plain
+
+    out = {k: plain(r[k]) for k in keys if k in r}
     out["files"] = files
     return out
-
-
-def _plain(value):
-    import numpy as np
-
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value.item() if isinstance(value, np.generic) else value
 
 
 def certificate_text(name, table) -> str:

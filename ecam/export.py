@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import re
 
 import numpy as np
 
 from .table import FORMAT_VERSION, CamTable
 
-__all__ = ["to_c_header", "to_blob", "to_csv", "to_json", "EXPORTERS", "identifier"]
+__all__ = ["to_c_header", "to_blob", "to_csv", "to_json", "EXPORTERS", "identifier", "plain"]
 
 
 def identifier(name: str) -> str:
@@ -60,7 +61,7 @@ def to_c_header(table: CamTable, name: str = "cam") -> str:
         f"#define {ident.upper()}_MASTER_COUNTS {f.master_counts}u",
         "",
         "/* Every format field. Range / scale / offset of each is in firmware_tables/FORMAT.md. */",
-        f"static const struct {{",
+        "static const struct {",
         "    uint8_t degree;          /* 1 linear, 3 cubic Hermite, 5 quintic Hermite */",
         "    uint8_t periodic;        /* 1: master positions wrap modulo master_counts */",
         "    int8_t step_shift;       /* log2(step_counts), or -1 */",
@@ -143,18 +144,22 @@ def to_json(table: CamTable, name: str = "cam") -> str:
         "positions": [int(v) for v in table.positions],
         "slopes": None if table.slopes is None else [int(v) for v in table.slopes],
         "curvatures": None if table.curvatures is None else [int(v) for v in table.curvatures],
-        "certificate": _plain(table.report),
+        "certificate": plain(table.report),
     }
     return json.dumps(document, indent=1, sort_keys=True) + "\n"
 
 
-def _plain(value):
+def plain(value):
+    """JSON-safe copy: numpy scalars to Python numbers, non-finite floats to None (JSON has no
+    inf or NaN), tuples to lists."""
     if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
+        return {k: plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, np.generic):
-        return value.item()
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
     return value
 
 

@@ -41,7 +41,6 @@ from pathlib import Path
 
 import can
 import canopen
-import numpy as np
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError, SdoServer
 from canopen.sdo.constants import (EXPEDITED, NO_MORE_DATA, SIZE_SPECIFIED,

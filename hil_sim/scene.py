@@ -63,7 +63,6 @@ Layout (units in the names or below; SI unless said otherwise)::
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -291,17 +290,10 @@ def load_scene(path) -> Scene:
         Missing or unreadable file, invalid TOML, or a field out of range; one line naming
         the field, the value and what was expected.
     """
+    from ecam.camfile import read_toml
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CamFileError(f"scene file {str(path)!r} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CamFileError(f"scene file {str(path)!r} cannot be read: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise CamFileError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
+    data = read_toml(path, "scene file")
     return parse_scene(data, base=path.parent, source=path.name, path=path.resolve())
 
 

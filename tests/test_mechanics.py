@@ -60,3 +60,14 @@ def test_residual_vibration_smaller_for_smoother_laws():
 def test_bad_values(call):
     with pytest.raises(InputError):
         call()
+
+
+def test_math_core_imports_no_can_and_no_plotting():
+    """The math core stays pure: CAN and plotting come in only at the edges."""
+    import subprocess
+    import sys
+
+    code = ("import sys, ecam, ecam.compile, ecam.export, ecam.firmware; "
+            "print(sorted(m for m in ('can', 'canopen', 'matplotlib', 'scipy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

@@ -1,6 +1,4 @@
 """Cam profiles: evaluation, wrapping, and check() on random chains of segments."""
-import math
-
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st

@@ -6,12 +6,45 @@ import numpy as np
 
 from .profile import ORDER_NAMES, CamProfile
 
-__all__ = ["plot_profile"]
+__all__ = ["plot_profile", "check_figure_path", "save_figure"]
+
+FIGURE_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
+
+
+def check_figure_path(path) -> None:
+    """Reject, before any work, a figure file whose format or directory cannot be written."""
+    from pathlib import Path
+
+    from .errors import InputError
+
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in FIGURE_FORMATS:
+        raise InputError(f"plot file {str(path)!r} has format {suffix or '(none)'!r}; "
+                         f"expected one of {', '.join(FIGURE_FORMATS)}")
+    if not path.parent.is_dir():
+        raise InputError(f"plot file {str(path)!r}: directory {str(path.parent)!r} does not exist")
+
+
+def save_figure(fig, path, dpi: int = 110) -> None:
+    """Save and close a matplotlib figure; a bad path is one InputError line, not a traceback."""
+    import matplotlib.pyplot as plt
+
+    from .errors import InputError
+
+    check_figure_path(path)
+    try:
+        fig.savefig(path, dpi=dpi)
+    except OSError as exc:
+        raise InputError(f"plot file {str(path)!r} cannot be written: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
 
 
 def plot_profile(profile: CamProfile, path, samples: int = 4001) -> None:
     """Position, velocity, acceleration and jerk against master position, joints marked and
     discontinuities found by ``check()`` flagged, written to ``path`` (PNG, SVG or PDF)."""
+    check_figure_path(path)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -45,5 +78,4 @@ def plot_profile(profile: CamProfile, path, samples: int = 4001) -> None:
         mid = (seg.master_start + seg.master_end) / 2
         axes[0].annotate(seg.label, (mid, 1.0), xycoords=("data", "axes fraction"), ha="center", va="top",
                          fontsize=7, xytext=(0, -4 - 10 * (i % 2)), textcoords="offset points")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

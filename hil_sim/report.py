@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ecam.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -177,6 +176,8 @@ def plot_report(report: Report, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ecam.plot import save_figure
+
     s = report.series
     time_s = s["time_s"]
     units = report.summary.get("units", {})
@@ -205,12 +206,7 @@ def plot_report(report: Report, path) -> None:
     _limit_lines(ax, _limit(report, "following_error"), s["following_error"])
     ax.set_xlabel(f"master position in the cam period [{units.get('master', '')}]")
     ax.set_ylabel("following error [counts]")
-    try:
-        fig.savefig(path, dpi=110)
-    except OSError as exc:
-        raise InputError(f"plot file {str(path)!r} cannot be written: {exc.strerror or exc}") from None
-    finally:
-        plt.close(fig)
+    save_figure(fig, path)
 
 
 def _limit_lines(ax, limit, data) -> None:

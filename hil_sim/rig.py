@@ -309,6 +309,10 @@ def run_scene(scene, *, plot=None) -> Report:
         A bad scene, cam or table format (InputError and subclasses), or a run that cannot
         go on (SimulationError).
     """
+    if plot is not None:
+        from ecam.plot import check_figure_path
+
+        check_figure_path(plot)  # before the run, not after it
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     wall_start = time.perf_counter()

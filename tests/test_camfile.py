@@ -121,3 +121,11 @@ def test_combination_in_a_file_needs_a_ratio(tmp_path):
     """
     with pytest.raises(ecam.CamFileError, match="segment\\[0\\].accel_ratio: missing"):
         ecam.load_cam(write(tmp_path, text))
+
+
+@pytest.mark.parametrize("target,message", [("plot.xyz", "has format 'xyz'"), ("missing/plot.png", "does not exist")])
+def test_plot_to_a_bad_path_is_one_line(tmp_path, target, message):
+    path = write(tmp_path, GOOD)
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "plot", str(path), "-o", str(tmp_path / target)],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and message in run.stderr and len(run.stderr.strip().splitlines()) == 1

@@ -179,9 +179,10 @@ class _Job:
             for intervals in self.intervals(degree):
                 if intervals + 1 > MAX_POINTS:
                     break
-                predicted = self.predict_interpolation(degree, intervals) + 1.0
-                floor_seen = min(floor_seen, predicted)
+                # the final rounding alone costs 1/2 count: a lower bound of the certified error
+                predicted = self.predict_interpolation(degree, intervals) + 0.5
                 if predicted > tol_counts:
+                    floor_seen = min(floor_seen, predicted)
                     continue
                 nbytes = HEADER_BYTES + (intervals + 1) * 4 * ((degree + 1) // 2)
                 if best is not None and nbytes >= best[0]:
@@ -193,11 +194,12 @@ class _Job:
                 if table.report["predicted_error_counts"] <= tol_counts:
                     best = (nbytes, degree, intervals)
                     break
+                floor_seen = min(floor_seen, table.report["predicted_error_counts"])
         if best is None:
             raise TableFormatError(
                 f"tolerance {tol_counts:.4g} counts ({tol_counts / self.S:.4g} {self.profile.slave_unit}) cannot be "
-                f"met within {MAX_POINTS} points; the best bound found is {floor_seen:.4g} counts "
-                f"(quantization alone is about 1 count)"
+                f"met within {MAX_POINTS} points; the best bound found is {floor_seen:.6g} counts "
+                f"(the final rounding to whole counts alone costs 1/2 count)"
             )
         _, degree, intervals = best
         table = self.build(degree, intervals, certify=certify, progress=progress)

@@ -288,3 +288,12 @@ def test_scalar_path_matches_the_vectorized_lookup(kind, drrd):
         for q, p, s in zip(queries.tolist(), position.tolist(), slope.tolist()):
             assert periodic_table.lookup(q, with_slope=True) == (p, s)
             assert periodic_table.lookup(np.int64(q)) == p
+
+
+def test_tolerance_just_above_the_half_count_floor(msine):
+    """The search's lower bound is the 1/2-count final rounding, so 0.6 counts is reachable and
+    0.5 counts (the floor itself) is refused with the best bound in the message."""
+    table = compile_table(msine, interp="auto", tolerance="0.6 counts")
+    assert table.report["max_error_counts"] <= table.report["predicted_error_counts"] <= 0.6
+    with pytest.raises(TableFormatError, match="best bound found is 0.50"):
+        compile_table(msine, interp="auto", tolerance="0.5 counts")

@@ -295,5 +295,5 @@ def test_tolerance_just_above_the_half_count_floor(msine):
     0.5 counts (the floor itself) is refused with the best bound in the message."""
     table = compile_table(msine, interp="auto", tolerance="0.6 counts")
     assert table.report["max_error_counts"] <= table.report["predicted_error_counts"] <= 0.6
-    with pytest.raises(TableFormatError, match="best bound found is 0.50"):
+    with pytest.raises(TableFormatError, match="best bound found is 0.5"):
         compile_table(msine, interp="auto", tolerance="0.5 counts")

@@ -464,3 +464,24 @@ def test_drive_command_serves_a_canopen_master_until_stopped(scene):
         worker.join(10.0)
         network.disconnect()
     assert result == [0]
+
+
+def test_master_that_reverses_jitters_and_stops_inside_a_segment(rig, tables):
+    """Hard case: on the drive-side cam a master that runs forward into the C1 rise piece,
+    reverses, jitters and stops there gets the table's exact targets at every cycle, with no
+    fault, no jump and a finite velocity offset."""
+    drrd, _ = tables
+    start_cam(rig, drrd)
+    inside = int(drrd.master_counts * 75 / 360)  # inside the C1 piece of the rise
+    rng = np.random.default_rng(11)
+    masters = np.concatenate([
+        np.arange(inside - 4000, inside + 1, 40),      # forward into the segment
+        np.arange(inside, inside - 2000, -40),         # reverse
+        inside - 2000 + rng.integers(-3, 4, 100),      # jitter
+        np.full(100, inside - 2000),                   # stop
+    ])
+    targets = cam_targets(rig, masters)
+    assert targets == [int(v) for v in drrd.lookup(masters.astype(np.int64))]
+    assert rig.drive.state == drv.OPERATION_ENABLED
+    following = rig.drive.values[(0x60F4, 0)]
+    assert abs(following) <= rig.drive.values[(0x6065, 0)]

@@ -36,7 +36,9 @@ The rig: the shipped scene ``hil_sim/scenes/stiff_coupling.toml`` at 1 kHz and 4
 
 JSON shape (``--json``)
 -----------------------
-A list of rows; each has ``kind``:
+A list of rows, the table rows first; every row has the contract keys ``law``, ``interp``,
+``points``, ``bytes``, ``max_error_counts``, ``ns_per_lookup`` (None on rows that are not tables)
+and a ``kind``:
 
 - ``"table"``: ``law``, ``interp`` (``auto`` rows also ``chosen_interp``), ``points``, ``bytes``,
   ``max_error_counts`` / ``max_error_units`` / ``max_error_fraction`` (the certificate's measured
@@ -813,6 +815,17 @@ def format_text(rows: list[dict]) -> str:
 # --- command line -------------------------------------------------------------------------------
 
 
+CONTRACT_KEYS = ("law", "interp", "points", "bytes", "max_error_counts", "ns_per_lookup")
+
+
+def contract_rows(rows: list[dict]) -> list[dict]:
+    """The ``--json`` list: the table rows first, then the rig, target and note rows; every row
+    carries the contract keys (None where a row is not a table), so a consumer that reads
+    ``row["law"]`` or ``row["bytes"]`` on every row does not break."""
+    ordered = [r for r in rows if r.get("kind") == "table"] + [r for r in rows if r.get("kind") != "table"]
+    return [{**{key: None for key in CONTRACT_KEYS}, **row} for row in ordered]
+
+
 def main(args) -> int:
     """`ecam bench [--json] [--plot FILE.png] [--quick]`."""
     from .cli import _progress
@@ -824,7 +837,7 @@ def main(args) -> int:
         except OSError as exc:
             raise InputError(f"--plot {str(args.plot)!r} cannot be written: {exc.strerror or exc}") from None
     if args.json:
-        print(json.dumps(rows, indent=1, allow_nan=False))
+        print(json.dumps(contract_rows(rows), indent=1, allow_nan=False))
     else:
         print(format_text(rows), end="")
         if args.plot:

@@ -6,10 +6,11 @@ import math
 import tomllib
 from pathlib import Path
 
+from .compile import parse_tolerance
 from .design import combination_segments
 from .errors import CamFileError, InputError
 from .laws import law as _law, polynomial_from_boundary
-from .profile import CamProfile, Segment
+from .profile import MAX_PERIOD, MIN_PERIOD, MIN_SPAN_FRACTION, CamProfile, Segment
 
 __all__ = ["load_cam", "parse_cam", "read_toml"]
 
@@ -55,6 +56,8 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
     """Build a profile from the parsed TOML mapping (see the README for the format)."""
     _unknown(data, _TOP_KEYS, "")
     period = _number(data, "master_period", required=True, positive=True)
+    if not MIN_PERIOD <= period <= MAX_PERIOD:
+        raise CamFileError(f"master_period: {period!r} should be in {MIN_PERIOD:g}..{MAX_PERIOD:g}")
     periodic = _boolean(data, "periodic", default=True)
     slave = _number(data, "start", default=0.0)
     table = _table(data.get("table", {}))
@@ -86,6 +89,9 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
             span = end - master
             if not span > 0:
                 raise CamFileError(f"{where}.end: {end!r} should be > the segment start {master!r}")
+        if span < MIN_SPAN_FRACTION * period:
+            raise CamFileError(f"{where}.span: {span!r} should be >= {MIN_SPAN_FRACTION:g} of master_period "
+                               f"({MIN_SPAN_FRACTION * period:g})")
         slave_from = _number(raw, "from", where=where)
         if slave_from is not None:
             slave = slave_from  # a deliberate position jump; check() reports it
@@ -95,6 +101,8 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
             raise CamFileError(f"{where}: give at most one of 'stroke' or 'to'")
         if to is not None:
             stroke = to - slave
+        if stroke is not None and not math.isfinite(stroke):
+            raise CamFileError(f"{where}: stroke {stroke!r} (from {slave!r} to {to!r}) should be finite")
         name = raw.get("name", "")
         if not isinstance(name, str):
             raise CamFileError(f"{where}.name: {_show(name)} should be a string")
@@ -219,9 +227,14 @@ def _table(raw) -> dict:
             if isinstance(value, bool) or not isinstance(value, int):
                 raise CamFileError(f"table.{key}: {_show(value)} should be an integer")
             out[key] = value
-    for key in ("tolerance", "slave_counts_per_unit"):
-        if key in raw:
-            out[key] = _number(raw, key, where="table", positive=True)
+    if "tolerance" in raw:
+        try:
+            parse_tolerance(raw["tolerance"])
+        except InputError as exc:
+            raise CamFileError(f"table.{exc}") from None
+        out["tolerance"] = raw["tolerance"]
+    if "slave_counts_per_unit" in raw:
+        out["slave_counts_per_unit"] = _number(raw, "slave_counts_per_unit", where="table", positive=True)
     return out
 
 

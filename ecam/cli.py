@@ -110,6 +110,8 @@ def cmd_compile(args) -> int:
 
     profile = load_cam(args.cam)
     formats = [f.strip() for f in args.format.split(",") if f.strip()]
+    if not formats:
+        raise InputError(f"--format {args.format!r} should name at least one of c, bin, csv, json")
     for f in formats:
         if f not in EXPORTERS:
             raise InputError(f"--format {f!r} should be one of {', '.join(EXPORTERS)}")
@@ -191,7 +193,10 @@ def cmd_demo(args) -> int:
     from .plot import plot_profile
 
     out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"output directory {str(out)!r} cannot be created: {exc.strerror or exc}") from None
     print("ecam demo: the seed cams, checked, plotted and compiled into certified tables\n")
     for stem in SEED_CAMS:
         profile = load_cam(CAMS_DIR / f"{stem}.toml")

@@ -15,9 +15,10 @@ from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
     HEADER_BYTES, KINDS, MAX_MASTER_COUNTS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
+    overflow_proof,
 )
 
-__all__ = ["compile_table", "MAX_POINTS", "candidate_points"]
+__all__ = ["compile_table", "MAX_POINTS", "candidate_points", "parse_tolerance"]
 
 MAX_POINTS = 2**22 + 1
 DENSE_LIMIT = 2**22  # certify on every master count up to this period
@@ -96,6 +97,9 @@ def compile_table(
     job = _Job(profile, master_counts, scale)
     if points is not None and tolerance is not None:
         raise InputError("give either points or tolerance, not both")
+    if points is None and tolerance is None:
+        raise InputError("points and tolerance are both missing: give one (--points / --tolerance, "
+                         "or points / tolerance in the cam file's [table])")
     if interp == "auto" and tolerance is None:
         raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
     if points is not None:
@@ -149,15 +153,10 @@ class _Job:
     def jumps(self):
         """(count position, order, size) of every derivative jump up to order 5, in counts."""
         if self._jumps is None:
-            found = []
-            for master, _ in self.profile.breaks():
-                where = master / self.unit
-                for order in range(6):
-                    left = float(self.derivative(np.array([where]), order, "left")[0])
-                    right = float(self.derivative(np.array([where]), order, "right")[0])
-                    if abs(right - left) > 1e-9 * max(abs(left), abs(right), self.bound(order), 1e-300):
-                        found.append((where, order, right - left))
-            self._jumps = found
+            self._jumps = [
+                (d.master / self.unit, d.order, d.jump * self.S * self.unit**d.order)
+                for d in self.profile.jumps(max_order=5)
+            ]
         return self._jumps
 
     def intervals(self, degree: int) -> list[int]:
@@ -216,8 +215,8 @@ class _Job:
         smooth = _ERROR_CONSTANT[degree] * h ** (degree + 1) * self.bound(degree + 1)
         per_interval: dict[int, float] = {}
         for where, order, size in self.jumps():
-            if order > degree:
-                continue
+            if order > degree or (self.profile.periodic and abs(where) < 1e-9):
+                continue  # the seam is stored one-sided at both ends: no cost
             position = (where / h) % intervals if self.profile.periodic else where / h
             i = math.floor(position + 1e-9)
             offset = position - i
@@ -245,11 +244,10 @@ class _Job:
         for order in range((degree + 1) // 2):
             right = self.derivative(counts, order, "right")
             left = self.derivative(counts, order, "left")
-            if self.profile.periodic:
-                right[-1] = right[0]
-                left[0] = left[-1]
-            else:
-                left[0], right[-1] = right[0], left[-1]
+            # The first point only starts an interval and the last only ends one (a periodic
+            # lookup wraps before it would cross the seam), so both take one-sided values: a
+            # seam jump, or a net stroke per cycle, is then stored exactly.
+            left[0], right[-1] = right[0], left[-1]
             values.append((left + right) / 2 * h**order / math.factorial(order))
         return values
 
@@ -273,7 +271,10 @@ class _Job:
         intervals = f.points - 1
         interp_bound = self.predict_interpolation(degree, intervals)
         quant = _quantization_bound(table)
-        predicted = interp_bound + quant + 1e-6  # 1e-6: float evaluation of the analytic profile
+        # the analytic profile is evaluated in float64: allow 64 ulp of the largest position
+        low, high = self.profile.slave_range
+        float_margin = 1e-6 + 64 * 2.0**-52 * max(abs(low), abs(high)) * self.S
+        predicted = interp_bound + quant + float_margin
         off_grid = sorted({
             round(where * self.unit, 9) for where, order, _ in self.jumps()
             if order <= degree and abs(where / h - round(where / h)) > 1e-6
@@ -378,7 +379,7 @@ def _choose_format(degree, periodic, h, intervals, data):
                 curvatures = np.round(data[2] * 2.0**curvature_bits)
                 if np.abs(curvatures).max() > _INT32_MAX:
                     raise TableFormatError(f"table curvature {np.abs(data[2]).max():.4g} counts per step^2 overflows int32")
-            ok, why, preshift = _proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
+            ok, why, preshift = overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
                                        curvature_bits, work_bits, tau_bits, tau_recip)
             if ok:
                 fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
@@ -401,70 +402,6 @@ def _fit_bits(values) -> int:
         return MAX_WORK_BITS
     q = math.floor(math.log2((_INT32_MAX - 1) / peak))
     return max(0, min(MAX_WORK_BITS, q))
-
-
-def _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits):
-    """Float images (exact below 2^53, within a relative 1e-16 above) of Y0 * 2^(W-Qy) and the
-    integer c_k."""
-    y = positions.astype(np.float64) * 2.0 ** (work_bits - position_bits)
-    d = y[1:] - y[:-1]
-    if degree == 1:
-        return y, [d]
-    s = slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
-    a0, a1 = s[:-1], s[1:]
-    if degree == 3:
-        return y, [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
-    c = curvatures.astype(np.float64) * 2.0 ** (work_bits - curvature_bits)
-    b0, b1 = c[:-1], c[1:]
-    return y, [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
-               6 * d - 3 * a0 - 3 * a1 - b0 + b1]
-
-
-def _proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits, tau_bits,
-           tau_recip):
-    """Prove every intermediate of FORMAT.md steps 4-6 stays inside int64 and every output inside
-    int32, for every interval and every tau < 2^F. Returns (ok, reason, slope_preshift)."""
-    y, c = _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits,
-                               work_bits)
-    tau_max = 2.0**tau_bits - 1
-    n = degree
-    if np.abs(y).max() * 2 >= _INT64_LIMIT:
-        return False, f"position x 2^{work_bits - position_bits} exceeds int64", 0
-    r = np.abs(c[n - 1])
-    q = n * np.abs(c[n - 1])
-    for k in range(n - 1, 0, -1):
-        if r.max() * tau_max >= _INT64_LIMIT:
-            return False, f"Horner product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
-        if q.max() * tau_max >= _INT64_LIMIT:
-            return False, f"slope Horner product {q.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
-        r = np.abs(c[k - 1]) + r + 1
-        q = k * np.abs(c[k - 1]) + q + 1
-    if r.max() * tau_max >= _INT64_LIMIT:
-        return False, f"final product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
-    if (np.abs(y[:-1]) + r + 2.0**work_bits).max() >= _INT64_LIMIT:
-        return False, f"final sum exceeds int64 (work_bits {work_bits})", 0
-    # The interpolant on [0, 1] lies in the hull of its Bernstein coefficients; Horner floors and
-    # the final rounding move the result by less than one more count.
-    reach = np.zeros_like(y[:-1])
-    for j in range(n + 1):
-        b = y[:-1].copy()
-        for k in range(1, j + 1):
-            b += math.comb(j, k) / math.comb(n, k) * c[k - 1]
-        reach = np.maximum(reach, np.abs(b))
-    reach = reach / 2.0**work_bits + n * 2.0**-work_bits + 1
-    if reach.max() > _INT32_MAX:
-        return False, f"interpolated position may reach {reach.max():.0f} counts, past int32", 0
-    q_max = float(q.max())
-    preshift = max(0, SLOPE_BITS + tau_bits + work_bits - 63)  # keep the final shift <= 63
-    while (q_max / 2.0**preshift + 1) * tau_recip >= _INT64_LIMIT:
-        preshift += 1
-    final = SLOPE_BITS + tau_bits + work_bits - preshift
-    if final < 0:
-        return False, f"slope shift {final} would be negative", 0
-    slope_peak = (q_max / 2.0**preshift + 1) * tau_recip / 2.0**final + 1
-    if slope_peak > _INT32_MAX:
-        return False, f"slope may reach {slope_peak:.4g} (Q16 counts per count), past int32", 0
-    return True, "", preshift
 
 
 # error accounting ----------------------------------------------------------------------------
@@ -565,27 +502,26 @@ def _integer(name, value, low, high):
     return int(value)
 
 
-def _tolerance_counts(tolerance, scale, unit) -> float:
+def parse_tolerance(tolerance) -> tuple[float, bool]:
+    """A tolerance as (value, in_counts): a number in slave units, or a string such as
+    ``"2 counts"`` (also ``"2 count"``, ``"2 lsb"``) or ``"0.001"`` (slave units)."""
+    value, in_counts = tolerance, False
     if isinstance(tolerance, str):
         text = tolerance.strip().lower()
-        for suffix in ("counts", "count", "lsb"):
-            if text.endswith(suffix):
-                try:
-                    value = float(text[: -len(suffix)])
-                except ValueError:
-                    break
-                if math.isfinite(value) and value > 0:
-                    return value
-                break
-        else:
-            try:
-                return _tolerance_counts(float(text), scale, unit)
-            except ValueError:
-                pass
-        raise InputError(f"tolerance {tolerance!r} should be a number in {unit} or '<number> counts'")
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not (math.isfinite(tolerance) and tolerance > 0):
-        raise InputError(f"tolerance {tolerance!r} should be a finite number > 0")
-    return float(tolerance) * scale
+        number = text.removesuffix("counts").removesuffix("count").removesuffix("lsb").strip()
+        in_counts = number != text
+        try:
+            value = float(number)
+        except ValueError:
+            value = None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+        raise InputError(f"tolerance {tolerance!r} should be a number > 0 in slave units or a string like '2 counts'")
+    return float(value), in_counts
+
+
+def _tolerance_counts(tolerance, scale, unit) -> float:
+    value, in_counts = parse_tolerance(tolerance)
+    return value if in_counts else value * scale
 
 
 def _divisors(n: int) -> list[int]:

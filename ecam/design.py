@@ -49,8 +49,10 @@ def combination(first, second, *, span: float, stroke: float, accel_ratio: float
     for name, value in (("span", span), ("stroke", stroke), ("accel_ratio", accel_ratio)):
         if not (isinstance(value, (int, float)) and math.isfinite(value)) or value == 0:
             raise InputError(f"combination {name} {value!r} should be finite and non-zero")
-    if span < 0 or accel_ratio < 0:
-        raise InputError(f"combination span {span!r} and accel_ratio {accel_ratio!r} should be > 0")
+    if span < 0:
+        raise InputError(f"combination span {span!r} should be > 0")
+    if not 1e-6 <= accel_ratio <= 1e6:
+        raise InputError(f"combination accel_ratio {accel_ratio!r} should be in 1e-06..1e+06")
     v1, v2 = first(1.0, 1), second(0.0, 1)
     a1, a2 = _finite_peak(first), _finite_peak(second)
     if v1 <= 0 or v2 <= 0:

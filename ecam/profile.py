@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -13,6 +14,9 @@ from .laws import Law, law as _law
 __all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES"]
 
 ORDER_NAMES = ("position", "velocity", "acceleration", "jerk")
+MIN_PERIOD, MAX_PERIOD = 1e-9, 1e12  # master units
+MIN_SPAN_FRACTION = 1e-9  # of the master period; 1e-6 (a hard case) is well inside
+MAX_SLAVE = 1e15  # slave units
 
 
 @dataclass(frozen=True)
@@ -150,8 +154,8 @@ class CamProfile:
     def __post_init__(self):
         if not self.segments:
             raise InputError("segments [] should hold at least one segment")
-        if not (math.isfinite(self.master_period) and self.master_period > 0):
-            raise InputError(f"master_period {self.master_period!r} should be finite and > 0")
+        if not (math.isfinite(self.master_period) and MIN_PERIOD <= self.master_period <= MAX_PERIOD):
+            raise InputError(f"master_period {self.master_period!r} should be in {MIN_PERIOD:g}..{MAX_PERIOD:g}")
         position = 0.0
         for i, seg in enumerate(self.segments):
             if not math.isclose(seg.master_start, position, rel_tol=0, abs_tol=1e-9 * self.master_period):
@@ -162,6 +166,14 @@ class CamProfile:
                 )
             if not seg.span > 0:
                 raise InputError(f"segment[{i}].span {seg.span!r} should be > 0")
+            # derivatives up to the 7th divide by span**7: keep that far from under/overflow
+            if seg.span < MIN_SPAN_FRACTION * self.master_period:
+                raise InputError(f"segment[{i}].span {seg.span!r} should be >= {MIN_SPAN_FRACTION:g} of "
+                                 f"master_period ({MIN_SPAN_FRACTION * self.master_period:g})")
+            for name, value in (("from", seg.slave_start), ("to", seg.slave_end)):
+                if not (math.isfinite(value) and abs(value) <= MAX_SLAVE):
+                    raise InputError(f"segment[{i}] slave position ({name}) {value!r} should be finite "
+                                     f"and within +-{MAX_SLAVE:g}")
             position = seg.master_end
         if not math.isclose(position, self.master_period, rel_tol=1e-12):
             kind = "gap" if position < self.master_period else "overlap"
@@ -220,7 +232,7 @@ class CamProfile:
                         joints[i], joints[np.minimum(i + 1, len(joints) - 1)])
         return np.where(np.abs(near - x) <= 1e-12 * self.master_period, near, x)
 
-    @property
+    @functools.cached_property
     def slave_range(self) -> tuple[float, float]:
         """Smallest and largest slave position over the period (dense sample + joints)."""
         x = np.concatenate([np.linspace(0, self.master_period, 20001), self.joints()])
@@ -231,24 +243,45 @@ class CamProfile:
         """Master positions of the segment joints (without 0 and the period)."""
         return np.array([s.master_start for s in self.segments[1:]])
 
-    def breaks(self) -> list[tuple[float, str]]:
-        """Every place a derivative may jump: joints, inner law breaks, and the seam."""
+    def breaks(self) -> list[tuple[float, str, tuple[int, ...]]]:
+        """Every place a derivative may jump -- joints, inner law breaks, and the seam -- as
+        (master position, description, indices of the segments on either side)."""
         out = []
+        last = len(self.segments) - 1
         for i, seg in enumerate(self.segments):
             if i > 0:
                 prev = self.segments[i - 1]
-                out.append((seg.master_start, f"joint {prev.label} -> {seg.label}"))
+                out.append((seg.master_start, f"joint {prev.label} -> {seg.label}", (i - 1, i)))
             for u in seg.law.breaks:
-                out.append((seg.master_start + u * seg.span, f"inside {seg.label} (law break)"))
+                out.append((seg.master_start + u * seg.span, f"inside {seg.label} (law break)", (i,)))
         if self.periodic:
-            out.append((0.0, f"seam {self.segments[-1].label} -> {self.segments[0].label}"))
+            out.append((0.0, f"seam {self.segments[-1].label} -> {self.segments[0].label}", (last, 0)))
         return out
 
     # continuity ----------------------------------------------------------------------------
-    def scale(self, order: int) -> float:
-        """Typical magnitude of derivative ``order``: the largest |stroke| / span**order."""
-        values = [abs(s.stroke) / s.span**order for s in self.segments]
-        return max(max(values), 1e-300)
+    def local_scale(self, order: int, segments) -> float:
+        """Magnitude of derivative ``order`` that the given segments can produce:
+        the largest |stroke| / span**order among them."""
+        return max(abs(self.segments[i].stroke) / self.segments[i].span ** order for i in segments)
+
+    def jumps(self, max_order: int = 3) -> list[Discontinuity]:
+        """Every jump of a derivative up to ``max_order``, at every break.
+
+        A difference counts as a jump when it exceeds float noise: a relative 1e-9 of the
+        one-sided values (1e-12 for positions, so a small step high up the int32 range is not
+        lost in the absolute position) plus 1e-12 of what the neighbouring segments -- not the
+        whole cam -- can produce, so a tiny segment elsewhere hides nothing.
+        """
+        found = []
+        for master, where, neighbours in self.breaks():
+            for order in range(max_order + 1):
+                left = float(self(master, order, side="left"))
+                right = float(self(master, order, side="right"))
+                relative = 1e-12 if order == 0 else 1e-9
+                noise = relative * max(abs(left), abs(right)) + 1e-12 * self.local_scale(order, neighbours)
+                if abs(right - left) > noise:
+                    found.append(Discontinuity(float(master), order, left, right, where))
+        return found
 
     def check(self, max_order: int = 3) -> CheckReport:
         """Report every jump of position, velocity, acceleration (and jerk, as a warning).
@@ -256,14 +289,7 @@ class CamProfile:
         Joints between segments, breaks inside a law (e.g. the acceleration step of the
         parabolic law) and, for periodic cams, the seam where the period wraps are all checked.
         """
-        found = []
-        for master, where in self.breaks():
-            for order in range(max_order + 1):
-                left = float(self(master, order, side="left"))
-                right = float(self(master, order, side="right"))
-                if abs(right - left) > 1e-9 * max(self.scale(order), abs(left), abs(right)):
-                    found.append(Discontinuity(float(master), order, left, right, where))
-        return CheckReport(tuple(found))
+        return CheckReport(tuple(self.jumps(max_order)))
 
     def derivative_bound(self, order: int, lo: float = 0.0, hi: float | None = None) -> float:
         """Upper bound of |d^order y/dx^order| on [lo, hi] (user units), from dense sampling of

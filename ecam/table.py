@@ -7,6 +7,7 @@ every intermediate shift floors, the final shift rounds half up.
 
 from __future__ import annotations
 
+import math
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -26,6 +27,8 @@ MAGIC = b"ECAM"
 MAX_MASTER_COUNTS = 2**31
 MAX_STEP_COUNTS = 2**30
 MAX_WORK_BITS = 40
+_INT32_MAX = 2**31 - 1
+_INT64_LIMIT = 2.0**63 * (1 - 1e-9)  # float bounds carry a relative margin
 _HEADER = struct.Struct("<4sHHBBbBBBBBIIIB3sQII12sI")
 assert _HEADER.size == HEADER_BYTES
 
@@ -375,12 +378,83 @@ class CamTable:
         if zlib.crc32(payload) != payload_crc:
             raise TableFormatError(f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
         arrays = np.frombuffer(payload, dtype="<i4").reshape(fmt.values_per_point, points)
-        return cls(
-            fmt,
-            arrays[0],
-            arrays[1] if degree >= 3 else None,
-            arrays[2] if degree == 5 else None,
-        )
+        positions, slopes = arrays[0], arrays[1] if degree >= 3 else None
+        curvatures = arrays[2] if degree == 5 else None
+        # The CRCs prove the bytes are intact, not that they came from the compiler: re-prove
+        # that no intermediate can overflow, so every accepted table has exact results.
+        ok, why, least_preshift = overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
+                                                 curvature_bits, work_bits, tau_bits, tau_recip)
+        if not ok or preshift < least_preshift:
+            reason = why or f"slope_preshift {preshift} should be >= {least_preshift}"
+            raise TableFormatError(f"blob could overflow int64 in the lookup: {reason}")
+        return cls(fmt, positions, slopes, curvatures)
+
+
+def _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits):
+    """Float images (exact below 2^53, within a relative 1e-16 above) of Y0 * 2^(W-Qy) and the
+    integer c_k."""
+    y = positions.astype(np.float64) * 2.0 ** (work_bits - position_bits)
+    d = y[1:] - y[:-1]
+    if degree == 1:
+        return y, [d]
+    s = slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
+    a0, a1 = s[:-1], s[1:]
+    if degree == 3:
+        return y, [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
+    c = curvatures.astype(np.float64) * 2.0 ** (work_bits - curvature_bits)
+    b0, b1 = c[:-1], c[1:]
+    return y, [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
+               6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+
+
+def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits, tau_bits,
+           tau_recip):
+    """Prove every intermediate of FORMAT.md steps 4-6 stays inside int64 and every output inside
+    int32, for every interval and every tau < 2^F.
+
+    Returns (ok, reason, slope_preshift): the smallest slope_preshift that keeps the slope path
+    inside int64 (any larger one that keeps the final shift >= 0 works too)."""
+    y, c = _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits,
+                               work_bits)
+    tau_max = 2.0**tau_bits - 1
+    n = degree
+    if np.abs(y).max() * 2 >= _INT64_LIMIT:
+        return False, f"position x 2^{work_bits - position_bits} exceeds int64", 0
+    r = np.abs(c[n - 1])
+    q = n * np.abs(c[n - 1])
+    for k in range(n - 1, 0, -1):
+        if r.max() * tau_max >= _INT64_LIMIT:
+            return False, f"Horner product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+        if q.max() * tau_max >= _INT64_LIMIT:
+            return False, f"slope Horner product {q.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+        r = np.abs(c[k - 1]) + r + 1
+        q = k * np.abs(c[k - 1]) + q + 1
+    if r.max() * tau_max >= _INT64_LIMIT:
+        return False, f"final product {r.max() * tau_max:.4g} exceeds int64 (work_bits {work_bits})", 0
+    if (np.abs(y[:-1]) + r + 2.0**work_bits).max() >= _INT64_LIMIT:
+        return False, f"final sum exceeds int64 (work_bits {work_bits})", 0
+    # The interpolant on [0, 1] lies in the hull of its Bernstein coefficients; Horner floors and
+    # the final rounding move the result by less than one more count.
+    reach = np.zeros_like(y[:-1])
+    for j in range(n + 1):
+        b = y[:-1].copy()
+        for k in range(1, j + 1):
+            b += math.comb(j, k) / math.comb(n, k) * c[k - 1]
+        reach = np.maximum(reach, np.abs(b))
+    reach = reach / 2.0**work_bits + n * 2.0**-work_bits + 1
+    if reach.max() > _INT32_MAX:
+        return False, f"interpolated position may reach {reach.max():.0f} counts, past int32", 0
+    q_max = float(q.max())
+    preshift = max(0, SLOPE_BITS + tau_bits + work_bits - 63)  # keep the final shift <= 63
+    while (q_max / 2.0**preshift + 1) * tau_recip >= _INT64_LIMIT:
+        preshift += 1
+    final = SLOPE_BITS + tau_bits + work_bits - preshift
+    if final < 0:
+        return False, f"slope shift {final} would be negative", 0
+    slope_peak = (q_max / 2.0**preshift + 1) * tau_recip / 2.0**final + 1
+    if slope_peak > _INT32_MAX:
+        return False, f"slope may reach {slope_peak:.4g} (Q16 counts per count), past int32", 0
+    return True, "", preshift
 
 
 def _as_counts(master_counts) -> np.ndarray:

@@ -97,7 +97,7 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
         drive = drive_for_scene(args.scene, channel=args.channel, bus=bus, node_id=args.node_id,
                                 heartbeat_ms=args.heartbeat_ms)
     else:
-        drive = VirtualDrive(channel=args.channel, node_id=args.node_id or 1, bus=bus,
+        drive = VirtualDrive(channel=args.channel, node_id=1 if args.node_id is None else args.node_id, bus=bus,
                              heartbeat_ms=args.heartbeat_ms)
     stop = stop or threading.Event()
     print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "

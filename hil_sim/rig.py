@@ -127,6 +127,11 @@ def _plan(scene: Scene, profile, table, scale: float, jitter: np.ndarray, cycles
     spec = scene.master
     speed_units = spec.units_per_second(period)
     speed = speed_units * per_unit
+    if abs(speed_units) * cycle_s > period / 2:
+        # a cam sampled less than twice per period aliases: the set points would be meaningless
+        raise InputError(f"master speed {speed_units:.6g} {profile.master_unit}/s moves "
+                         f"{abs(speed_units) * cycle_s:.6g} {profile.master_unit} per bus cycle, more than "
+                         f"half the cam period ({period / 2:g}); should be <= {period / 2 / cycle_s:.6g}")
     k = np.arange(cycles, dtype=float)
     t_end = (k + 1.0) * cycle_s            # the target sent in cycle k is for its end
     t_set = t_end + jitter                 # sampled at the jittered SYNC instant

@@ -115,7 +115,7 @@ class CamSpec:
     file: Path
     interp: str | None = None
     points: int | None = None
-    tolerance: float | None = None
+    tolerance: float | str | None = None  # slave units, or e.g. "2 counts"
     master_counts: int | None = None
     slave_counts_per_unit: float | None = None
 
@@ -384,10 +384,19 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
         raise r.fail("cam.interp", f"{_show(interp)} should be one of {', '.join(INTERPS)}")
     if "points" in raw and "tolerance" in raw:
         raise r.fail("cam", "give at most one of points and tolerance")
+    tolerance = raw.get("tolerance")
+    if tolerance is not None:
+        from ecam.compile import parse_tolerance
+
+        try:
+            parse_tolerance(tolerance)  # a number in slave units, or e.g. "2 counts"
+        except InputError:
+            raise r.fail("cam.tolerance", f"{_show(tolerance)} should be a number > 0 in slave units "
+                         "or a string like '2 counts'") from None
     return CamSpec(
         file=file, interp=interp,
         points=r.integer(raw, "points", "cam", minimum=2),
-        tolerance=r.number(raw, "tolerance", "cam", minimum=0.0, strict=True),
+        tolerance=tolerance,
         master_counts=r.integer(raw, "master_counts", "cam", minimum=2, maximum=2**31),
         slave_counts_per_unit=r.number(raw, "slave_counts_per_unit", "cam", minimum=0.0,
                                        strict=True))

@@ -129,3 +129,50 @@ def test_plot_to_a_bad_path_is_one_line(tmp_path, target, message):
     run = subprocess.run([sys.executable, "-m", "ecam.cli", "plot", str(path), "-o", str(tmp_path / target)],
                          capture_output=True, text=True)
     assert run.returncode == 2 and message in run.stderr and len(run.stderr.strip().splitlines()) == 1
+
+
+EXTREME = [
+    (GOOD.replace("span = 90.0\nstroke", "span = 1e-300\nstroke").replace("span = 180.0", "span = 270.0"),
+     "should be >= 1e-09 of master_period"),
+    (GOOD.replace("master_period = 360.0", "master_period = 1e308"), "master_period: 1e+308 should be in"),
+    (GOOD.replace('name = "t"', 'name = "t"\nstart = 1e308').replace("to = 0.0", "to = -1e308"),
+     "should be finite"),
+    ("""master_period = 120.0
+[[segment]]
+combination = ["half_cycloid_start", "half_harmonic_end"]
+accel_ratio = 1e300
+span = 120.0
+stroke = 1.0
+""", "accel_ratio 1e+300 should be in"),
+]
+
+
+@pytest.mark.parametrize("text,message", EXTREME)
+def test_extreme_numbers_are_bad_input_not_a_crash(tmp_path, text, message):
+    path = write(tmp_path, text)
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(path)], capture_output=True, text=True)
+    assert run.returncode == 2, run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
+
+
+def test_table_tolerance_in_counts(tmp_path):
+    from ecam import compile_table
+
+    text = GOOD + '[table]\ntolerance = "2 counts"\nmaster_counts = 65536\nslave_counts_per_unit = 1000\ninterp = "auto"\n'
+    profile = ecam.load_cam(write(tmp_path, text))
+    assert profile.table["tolerance"] == "2 counts"
+    assert compile_table(profile).report["predicted_error_counts"] <= 2
+    with pytest.raises(ecam.CamFileError, match="table.tolerance '3 furlongs' should be"):
+        ecam.load_cam(write(tmp_path, text.replace('"2 counts"', '"3 furlongs"'), "bad.toml"))
+
+
+@pytest.mark.parametrize("args,message", [
+    (["compile", "{cam}", "-o", "{tmp}"], "points and tolerance are both missing"),
+    (["compile", "{cam}", "--points", "9", "--format", "", "-o", "{tmp}"], "--format '' should name"),
+    (["demo", "-o", "/proc/ecam-demo"], "cannot be created"),
+])
+def test_more_cli_bad_input(tmp_path, args, message):
+    cam = write(tmp_path, GOOD)
+    args = [a.format(cam=cam, tmp=tmp_path) for a in args]
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", *args], capture_output=True, text=True)
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr

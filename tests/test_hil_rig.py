@@ -267,3 +267,29 @@ def test_cli_bad_input_is_one_line_exit_2(capsys, tmp_path):
     err = capsys.readouterr().err
     assert status == 2
     assert err.count("\n") == 1 and "does not exist" in err and "Traceback" not in err
+
+
+def test_a_master_faster_than_half_a_period_per_cycle_is_bad_input(tmp_path):
+    """An absurd speed is refused before the run (it would alias), not turned into a report."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    scenes = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
+    text = (scenes / "stiff_coupling.toml").read_text()
+    text = text.replace("speed_rpm = 60.0", "speed_rpm = 1e300")
+    text = text.replace('file = "../../firmware_tables', f'file = "{scenes.parent.parent / "firmware_tables"}')
+    scene = tmp_path / "fast.toml"
+    scene.write_text(text)
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "sim", str(scene)], capture_output=True, text=True)
+    assert run.returncode == 2 and "more than half the cam period" in run.stderr
+    assert len(run.stderr.strip().splitlines()) == 1
+
+
+def test_drive_node_id_zero_is_refused():
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-m", "ecam.cli", "drive", "--node-id", "0"], capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 2 and "node_id 0 should be" in run.stderr

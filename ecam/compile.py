@@ -398,7 +398,7 @@ def _choose_format(degree, periodic, h, intervals, data):
 def _fit_bits(values) -> int:
     """Largest q <= MAX_WORK_BITS with round(max|values| * 2^q) inside int32."""
     peak = float(np.abs(values).max())
-    if peak == 0:
+    if peak * 2.0**MAX_WORK_BITS < _INT32_MAX - 1:  # zero, tiny or denormal: every bit fits
         return MAX_WORK_BITS
     q = math.floor(math.log2((_INT32_MAX - 1) / peak))
     return max(0, min(MAX_WORK_BITS, q))

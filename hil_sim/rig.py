@@ -42,8 +42,10 @@ import numpy as np
 import ecam
 from ecam.errors import InputError, SimulationError
 from hil_sim import drive as drive_module
+from hil_sim import cia402
 from hil_sim.bus import DELIVER, BusLoad, FaultInjector, SimNetwork, frame_bits, open_virtual_bus
-from hil_sim.drive import EDS_PATH, FAULT, FAULT_REACTION_ACTIVE, VirtualDrive
+from hil_sim.cia402 import FAULT, FAULT_REACTION_ACTIVE
+from hil_sim.drive import EDS_PATH, VirtualDrive
 from hil_sim.report import Report, check
 from hil_sim.scene import Scene, _interpolation_period, load_scene
 
@@ -386,7 +388,7 @@ def _setup(scene: Scene, controller: LockstepMaster, node, drive: VirtualDrive, 
     sdo[0x60C2][1].raw = value
     sdo[0x60C2][2].raw = index
     sdo[0x6065].raw = scene.drive.following_error_window
-    sdo[0x6060].raw = drive_module.CYCLIC_SYNCHRONOUS_POSITION
+    sdo[0x6060].raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
     facts = {}
     if scene.cam_mode == "drive":
         blob = table.to_bytes()
@@ -410,7 +412,7 @@ def _setup(scene: Scene, controller: LockstepMaster, node, drive: VirtualDrive, 
     rpdo1 = node.rpdo[1]
     codec, indexes = _pdo_codec(rpdo1)
     for controlword in (0x06, 0x07, 0x0F):  # shutdown, switch on, enable operation
-        fields = {0x6040: controlword, 0x6060: drive_module.CYCLIC_SYNCHRONOUS_POSITION}
+        fields = {0x6040: controlword, 0x6060: cia402.CYCLIC_SYNCHRONOUS_POSITION}
         controller.send_message(rpdo1.cob_id, codec.pack(*[fields[i] for i in indexes]))
     statusword = sdo[0x6041].raw
     if statusword & 0x6F != 0x27:

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 
 import ecam
 from hil_sim import drive as drv
+from hil_sim import cia402
 from hil_sim.bus import open_virtual_bus
 from hil_sim.drive import EDS_PATH, VirtualDrive
 from hil_sim.rig import LockstepMaster
@@ -59,7 +60,7 @@ class Rig:
             self.node.nmt.state = "OPERATIONAL"
         for controlword in (0x06, 0x07, 0x0F):
             self.node.sdo[0x6040].raw = controlword
-        assert self.drive.state == drv.OPERATION_ENABLED
+        assert self.drive.state == cia402.OPERATION_ENABLED
 
     def rpdo(self, number, fmt, *values):
         self.master.send_message(0x100 * (number + 1) + self.node.id, struct.pack(fmt, *values))
@@ -168,7 +169,7 @@ def test_boot_up_heartbeat_and_nmt_states_on_simulated_time(rig):
     rig.node.nmt.state = "RESET"  # reset node: boot-up again, power-on values
     assert rig.received(0x700 + node_id)[-1][0] == b"\x00"
     assert rig.node.sdo[0x1017].raw == 1000  # ms, the EDS default again
-    assert rig.drive.nmt_state == drv.PRE_OPERATIONAL
+    assert rig.drive.nmt_state == cia402.PRE_OPERATIONAL
 
 
 def test_heartbeat_time_can_be_switched_off(rig):
@@ -184,11 +185,11 @@ def test_heartbeat_time_can_be_switched_off(rig):
 # CiA 402 state machine (the data table), PDOs
 
 PATH = [  # (controlword, state after it): CiA 402 transitions 2, 3, 4, 5, 6, 7, 2, 3+4, 11, 16, 8, 7
-    (0x06, drv.READY_TO_SWITCH_ON), (0x07, drv.SWITCHED_ON), (0x0F, drv.OPERATION_ENABLED),
-    (0x07, drv.SWITCHED_ON), (0x06, drv.READY_TO_SWITCH_ON), (0x00, drv.SWITCH_ON_DISABLED),
-    (0x06, drv.READY_TO_SWITCH_ON), (0x0F, drv.OPERATION_ENABLED), (0x02, drv.QUICK_STOP_ACTIVE),
-    (0x0F, drv.OPERATION_ENABLED), (0x06, drv.READY_TO_SWITCH_ON), (0x02, drv.SWITCH_ON_DISABLED),
-    (0x0F, drv.SWITCH_ON_DISABLED),  # no transition from SWITCH ON DISABLED on enable operation
+    (0x06, cia402.READY_TO_SWITCH_ON), (0x07, cia402.SWITCHED_ON), (0x0F, cia402.OPERATION_ENABLED),
+    (0x07, cia402.SWITCHED_ON), (0x06, cia402.READY_TO_SWITCH_ON), (0x00, cia402.SWITCH_ON_DISABLED),
+    (0x06, cia402.READY_TO_SWITCH_ON), (0x0F, cia402.OPERATION_ENABLED), (0x02, cia402.QUICK_STOP_ACTIVE),
+    (0x0F, cia402.OPERATION_ENABLED), (0x06, cia402.READY_TO_SWITCH_ON), (0x02, cia402.SWITCH_ON_DISABLED),
+    (0x0F, cia402.SWITCH_ON_DISABLED),  # no transition from SWITCH ON DISABLED on enable operation
 ]
 
 
@@ -200,7 +201,7 @@ def test_power_state_machine_follows_the_controlword(rig):
         rig.node.sdo[0x6040].raw = controlword
         assert rig.drive.state == state, hex(controlword)
         statusword = rig.node.sdo[0x6041].raw
-        assert statusword == drv.STATUSWORD[state] | drv.SW_REMOTE, (hex(controlword), hex(statusword))
+        assert statusword == cia402.STATUSWORD[state] | cia402.SW_REMOTE, (hex(controlword), hex(statusword))
 
 
 @given(st.lists(st.sampled_from([0x00, 0x02, 0x06, 0x07, 0x0F, 0x0B, 0x80, 0x8F, 0x86]),
@@ -216,7 +217,7 @@ def test_statusword_always_decodes_to_the_drive_state_for_base_node_402(controlw
             decoded = [name for name, (mask, bits) in State402.SW_MASK.items()
                        if statusword & mask == bits]
             assert decoded == [rig.drive.state], (hex(controlword), hex(statusword))
-            assert statusword & drv.SW_REMOTE
+            assert statusword & cia402.SW_REMOTE
     finally:
         rig.close()
 
@@ -271,9 +272,9 @@ def test_following_error_raises_a_fault_with_emcy_and_resets(rig):
     start = rig.node.sdo[0x6064].raw
     rig.rpdo(2, "<ii", start + 5000, 0)  # a jump the axis cannot follow within 50 counts
     rig.master.sync.transmit()
-    assert rig.drive.state in (drv.FAULT_REACTION_ACTIVE, drv.FAULT)
+    assert rig.drive.state in (cia402.FAULT_REACTION_ACTIVE, cia402.FAULT)
     rig.master.sync.transmit()
-    assert rig.drive.state == drv.FAULT
+    assert rig.drive.state == cia402.FAULT
     statusword = rig.node.sdo[0x6041].raw
     assert statusword & 0x4F == 0x08  # fault
     assert rig.node.sdo[0x603F].raw == 0x8611
@@ -286,7 +287,7 @@ def test_following_error_raises_a_fault_with_emcy_and_resets(rig):
 
     rig.node.sdo[0x6040].raw = 0x00
     rig.node.sdo[0x6040].raw = 0x80  # fault reset: rising edge of bit 7
-    assert rig.drive.state == drv.SWITCH_ON_DISABLED
+    assert rig.drive.state == cia402.SWITCH_ON_DISABLED
     assert rig.node.sdo[0x603F].raw == 0
     assert rig.node.emcy.active == []  # the EMCY 0x0000 (error reset) was received
     assert struct.unpack("<H", rig.received(0x81)[-1][0][:2])[0] == 0
@@ -299,11 +300,11 @@ def test_following_error_time_out_delays_the_fault_and_sets_bit_13(rig):
     start = rig.node.sdo[0x6064].raw
     rig.rpdo(2, "<ii", start + 100000, 0)
     rig.master.sync.transmit()
-    assert rig.drive.state == drv.OPERATION_ENABLED
-    assert rig.node.sdo[0x6041].raw & drv.SW_FOLLOWING_ERROR
+    assert rig.drive.state == cia402.OPERATION_ENABLED
+    assert rig.node.sdo[0x6041].raw & cia402.SW_FOLLOWING_ERROR
     for _ in range(6):
         rig.master.sync.transmit()
-    assert rig.drive.state == drv.FAULT
+    assert rig.drive.state == cia402.FAULT
 
 
 # ---------------------------------------------------------------------------------------------
@@ -482,6 +483,6 @@ def test_master_that_reverses_jitters_and_stops_inside_a_segment(rig, tables):
     ])
     targets = cam_targets(rig, masters)
     assert targets == [int(v) for v in drrd.lookup(masters.astype(np.int64))]
-    assert rig.drive.state == drv.OPERATION_ENABLED
+    assert rig.drive.state == cia402.OPERATION_ENABLED
     following = rig.drive.values[(0x60F4, 0)]
     assert abs(following) <= rig.drive.values[(0x6065, 0)]

@@ -18,7 +18,7 @@ from .table import (
     overflow_proof,
 )
 
-__all__ = ["compile_table", "MAX_POINTS", "candidate_points", "parse_tolerance"]
+__all__ = ["compile_table", "MAX_POINTS", "candidate_intervals", "parse_tolerance"]
 
 MAX_POINTS = 2**22 + 1
 DENSE_LIMIT = 2**22  # certify on every master count up to this period
@@ -112,12 +112,13 @@ def compile_table(
                 f"{master_counts}; use points = k + 1 for a divisor k of {master_counts}, e.g. {better + 1}"
             )
         return job.build(KINDS[interp], intervals, certify=certify, progress=progress)
-    tol_counts = _tolerance_counts(tolerance, scale, profile.slave_unit)
+    value, in_counts = parse_tolerance(tolerance)
+    tol_counts = value if in_counts else value * scale
     kinds = list(KINDS.values()) if interp == "auto" else [KINDS[interp]]
     return job.search(kinds, tol_counts, certify=certify, progress=progress)
 
 
-def candidate_points(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
+def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
     """Interval counts allowed for a table, smallest first: divisors of ``master_counts`` that
     put every joint where a derivative up to ``degree`` jumps on a table point (all divisors if
     some joint does not fall on a whole master count)."""
@@ -517,11 +518,6 @@ def parse_tolerance(tolerance) -> tuple[float, bool]:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
         raise InputError(f"tolerance {tolerance!r} should be a number > 0 in slave units or a string like '2 counts'")
     return float(value), in_counts
-
-
-def _tolerance_counts(tolerance, scale, unit) -> float:
-    value, in_counts = parse_tolerance(tolerance)
-    return value if in_counts else value * scale
 
 
 def _divisors(n: int) -> list[int]:

@@ -32,6 +32,8 @@ Two ways to run it:
 
 from __future__ import annotations
 
+import copy
+import functools
 import logging
 import math
 import struct
@@ -97,6 +99,17 @@ _STRUCT_CODES = {  # canopen data type -> struct code for PDO packing
     0x08: "f", 0x15: "q", 0x1B: "Q",
 }
 _INT32 = 1 << 32
+
+
+@functools.lru_cache(maxsize=8)
+def _parsed_od(path: str, node_id: int):
+    return canopen.import_od(path, node_id)
+
+
+def load_od(path, node_id: int):
+    """The object dictionary of an EDS file for ``node_id``: parsed once, then a deep copy per
+    caller, so runs share the parsing cost but never any state."""
+    return copy.deepcopy(_parsed_od(str(path), node_id))
 
 
 def _wrap_int32(value: int) -> int:
@@ -238,7 +251,7 @@ class VirtualDrive:
         self.time_s = 0.0  # drive time: interpolation periods run so far
         self._wall_clock = False
         self.network = SimNetwork(self.bus, self._now)
-        self.od = canopen.import_od(str(eds or EDS_PATH), node_id)
+        self.od = load_od(eds or EDS_PATH, node_id)
         self.node = _DriveNode(node_id, self.od)
         # canopen's SDO server, NMT slave and heartbeat are replaced (see the module docstring).
         self.node.sdo = _SdoServer(0x600 + node_id, 0x580 + node_id, self.node,

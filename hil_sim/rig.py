@@ -45,7 +45,7 @@ from hil_sim import drive as drive_module
 from hil_sim import cia402
 from hil_sim.bus import DELIVER, BusLoad, FaultInjector, SimNetwork, frame_bits, open_virtual_bus
 from hil_sim.cia402 import FAULT, FAULT_REACTION_ACTIVE
-from hil_sim.drive import EDS_PATH, VirtualDrive
+from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.report import Report, check
 from hil_sim.scene import Scene, _interpolation_period, load_scene
 
@@ -343,7 +343,7 @@ def run_scene(scene, *, plot=None) -> Report:
     try:
         drive = VirtualDrive(bus=drive_bus, initial_counts=plan.initial_counts, **options)
         controller = LockstepMaster(master_bus, drive)
-        node = canopen.RemoteNode(scene.drive.node_id, str(EDS_PATH))
+        node = canopen.RemoteNode(scene.drive.node_id, load_od(EDS_PATH, scene.drive.node_id))
         controller.add_node(node)
         setup = _setup(scene, controller, node, drive, table)
         setup_s = time.perf_counter() - wall_start

@@ -65,7 +65,7 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
     if raw_segments is None:
         raise CamFileError("segment: missing; expected at least one [[segment]] table")
     if not isinstance(raw_segments, list) or not all(isinstance(s, dict) for s in raw_segments):
-        raise CamFileError(f"segment: {_show(raw_segments)} should be an array of tables ([[segment]])")
+        raise CamFileError(f"segment: {show(raw_segments)} should be an array of tables ([[segment]])")
     if not raw_segments:
         raise CamFileError("segment: [] should hold at least one segment")
 
@@ -105,7 +105,7 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
             raise CamFileError(f"{where}: stroke {stroke!r} (from {slave!r} to {to!r}) should be finite")
         name = raw.get("name", "")
         if not isinstance(name, str):
-            raise CamFileError(f"{where}.name: {_show(name)} should be a string")
+            raise CamFileError(f"{where}.name: {show(name)} should be a string")
 
         has_law, has_combo = "law" in raw, "combination" in raw
         if has_law == has_combo:
@@ -113,10 +113,10 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
         if has_combo:
             laws = raw["combination"]
             if not (isinstance(laws, list) and len(laws) == 2 and all(isinstance(x, str) for x in laws)):
-                raise CamFileError(f"{where}.combination: {_show(laws)} should be a list of two law names")
+                raise CamFileError(f"{where}.combination: {show(laws)} should be a list of two law names")
             ratio = _number(raw, "accel_ratio", where=where, required=True, positive=True)
             if stroke is None or stroke == 0:
-                raise CamFileError(f"{where}.stroke: {_show(stroke)} should be a non-zero number for a combination")
+                raise CamFileError(f"{where}.stroke: {show(stroke)} should be a non-zero number for a combination")
             try:
                 pair = combination_segments(
                     laws[0], laws[1], master_start=master, span=span, slave_start=slave,
@@ -128,7 +128,7 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
         else:
             law_name = raw["law"]
             if not isinstance(law_name, str):
-                raise CamFileError(f"{where}.law: {_show(law_name)} should be a law name (string)")
+                raise CamFileError(f"{where}.law: {show(law_name)} should be a law name (string)")
             if law_name == "dwell":
                 if stroke not in (None, 0, 0.0):
                     raise CamFileError(f"{where}.stroke: {stroke!r} should be 0 or absent for a dwell")
@@ -214,18 +214,18 @@ def _solve_polynomial(segments, index, i, law_name, raw, periodic):
 
 def _table(raw) -> dict:
     if not isinstance(raw, dict):
-        raise CamFileError(f"table: {_show(raw)} should be a table ([table])")
+        raise CamFileError(f"table: {show(raw)} should be a table ([table])")
     _unknown(raw, _TABLE_KEYS, "table.")
     out = {}
     if "interp" in raw:
         if raw["interp"] not in ("linear", "cubic", "quintic", "auto"):
-            raise CamFileError(f"table.interp: {_show(raw['interp'])} should be one of linear, cubic, quintic, auto")
+            raise CamFileError(f"table.interp: {show(raw['interp'])} should be one of linear, cubic, quintic, auto")
         out["interp"] = raw["interp"]
     for key in ("points", "master_counts"):
         if key in raw:
             value = raw[key]
             if isinstance(value, bool) or not isinstance(value, int):
-                raise CamFileError(f"table.{key}: {_show(value)} should be an integer")
+                raise CamFileError(f"table.{key}: {show(value)} should be an integer")
             out[key] = value
     if "tolerance" in raw:
         try:
@@ -246,7 +246,7 @@ def _number(raw, key, *, where="", required=False, positive=False, default=None)
         return default
     value = raw[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CamFileError(f"{prefix}: {_show(value)} should be a number")
+        raise CamFileError(f"{prefix}: {show(value)} should be a number")
     value = float(value)
     if not math.isfinite(value):
         raise CamFileError(f"{prefix}: {value!r} should be finite")
@@ -258,14 +258,14 @@ def _number(raw, key, *, where="", required=False, positive=False, default=None)
 def _boolean(raw, key, default):
     value = raw.get(key, default)
     if not isinstance(value, bool):
-        raise CamFileError(f"{key}: {_show(value)} should be true or false")
+        raise CamFileError(f"{key}: {show(value)} should be true or false")
     return value
 
 
 def _string(raw, key, default):
     value = raw.get(key, default)
     if not isinstance(value, str):
-        raise CamFileError(f"{key}: {_show(value)} should be a string")
+        raise CamFileError(f"{key}: {show(value)} should be a string")
     return value
 
 
@@ -275,6 +275,7 @@ def _unknown(raw, allowed, prefix):
             raise CamFileError(f"{prefix}{key}: unknown field; expected one of {', '.join(sorted(allowed))}")
 
 
-def _show(value) -> str:
+def show(value) -> str:
+    """A value for a one-line error message: its repr, cut to 60 characters."""
     text = repr(value)
     return text if len(text) < 60 else text[:57] + "..."

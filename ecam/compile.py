@@ -192,7 +192,7 @@ class _Job:
                 except TableFormatError:
                     continue  # this size has no valid format (e.g. a step past 2^30); try the next
                 if table.report["predicted_error_counts"] <= tol_counts:
-                    best = (nbytes, degree, intervals)
+                    best = (nbytes, table)
                     break
                 floor_seen = min(floor_seen, table.report["predicted_error_counts"])
         if best is None:
@@ -201,8 +201,10 @@ class _Job:
                 f"met within {MAX_POINTS} points; the best bound found is {floor_seen:.6g} counts "
                 f"(the final rounding to whole counts alone costs 1/2 count)"
             )
-        _, degree, intervals = best
-        table = self.build(degree, intervals, certify=certify, progress=progress)
+        _, table = best
+        if certify:  # the winner was built uncertified; measure it rather than build it again
+            data = self.point_data(table.format.degree, table.points - 1)
+            table.report.update(self.measure(table, data, progress))
         table.report["tolerance_counts"] = tol_counts
         table.report["tolerance_units"] = tol_counts / self.S
         return table

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ecam import mechanics
 from ecam.errors import InputError
 
 
@@ -129,13 +130,13 @@ class Mechanics:
 
     def reflected_inertia(self) -> float:
         """Total inertia seen at the motor shaft, J_eq = J_motor + J_load r^2 / eta [kg m^2]."""
-        r = self.gear_ratio
-        return self.motor_inertia + self.load_inertia * r * r / self.gear_efficiency
+        return self.motor_inertia + mechanics.reflected_inertia(self.load_inertia, self.gear_ratio,
+                                                                self.gear_efficiency)
 
     def reflected_damping(self) -> float:
         """Total viscous damping seen at the motor shaft, b_in + b_out r^2 / eta [N m s/rad]."""
-        r = self.gear_ratio
-        return self.motor_damping + self.load_damping * r * r / self.gear_efficiency
+        return mechanics.reflected_damping(self.motor_damping, self.load_damping, self.gear_ratio,
+                                           self.gear_efficiency)
 
     def motor_inertia_at_load(self) -> float:
         """Motor-side inertia as the load side of the gear feels it, J1 = eta J_motor / r^2.
@@ -170,6 +171,6 @@ class Mechanics:
         """
         if self.coupling_stiffness is None:
             return math.inf
-        j1 = self.motor_inertia_at_load()
-        j2 = self.load_inertia
-        return math.sqrt(self.coupling_stiffness * (j1 + j2) / (j1 * j2)) / (2.0 * math.pi)
+        omega = mechanics.two_mass_frequency(self.coupling_stiffness, self.motor_inertia_at_load(),
+                                             self.load_inertia)
+        return omega / (2.0 * math.pi)

@@ -44,7 +44,6 @@ from ecam.errors import InputError, SimulationError
 from hil_sim import drive as drive_module
 from hil_sim import cia402
 from hil_sim.bus import DELIVER, BusLoad, FaultInjector, SimNetwork, frame_bits, open_virtual_bus
-from hil_sim.cia402 import FAULT, FAULT_REACTION_ACTIVE
 from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.report import Report, check
 from hil_sim.scene import Scene, _interpolation_period, load_scene
@@ -533,7 +532,7 @@ def _loop(scene: Scene, plan: _Plan, controller: LockstepMaster, node, drive: Vi
         saturated[k] = state["saturated"]
         end_cycle()
         ran = k + 1
-        if drive.state in (FAULT, FAULT_REACTION_ACTIVE):
+        if drive.state in (cia402.FAULT, cia402.FAULT_REACTION_ACTIVE):
             code = drive.values[(0x603F, 0)]
             stopped = (f"drive fault 0x{code:04X} at cycle {k} (t {now + cycle_s:.6g} s), "
                        f"statusword 0x{drive.values[(0x6041, 0)]:04X}")

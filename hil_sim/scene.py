@@ -66,6 +66,7 @@ import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from ecam.camfile import show as _show
 from ecam.errors import CamFileError, InputError
 
 CAM_MODES = ("controller", "drive")
@@ -521,6 +522,3 @@ def _duration(r: _Reader, data) -> DurationSpec:
         master_periods=r.number(raw, "master_periods", "duration", minimum=0.0, strict=True))
 
 
-def _show(value) -> str:
-    text = repr(value)
-    return text if len(text) < 60 else text[:57] + "..."

@@ -66,3 +66,23 @@ def test_modified_sine_cam_mirror_and_continuity(msine):
     report = msine.check()
     assert report.continuous(2)
     assert modified_sine_cam(50.0).check().continuous(2)
+
+
+def test_smallest_peak_law_picks_by_characteristic_value():
+    """Among rest-to-rest laws: the parabolic law has the smallest finite Ca (4), the cycloidal
+    the smallest finite Cj (4 pi^2 < 52.5 of 4-5-6-7)."""
+    from ecam.design import smallest_peak_law
+
+    assert smallest_peak_law(2).name == "constant_acceleration"
+    assert smallest_peak_law(3).name == "cycloidal"
+    assert smallest_peak_law(2, ["cycloidal", "modified_sine", "modified_trapezoid"]).name == "modified_trapezoid"
+
+
+def test_dwell_rise_return_dwell_builder():
+    from ecam.design import dwell_rise_return_dwell
+
+    cam = dwell_rise_return_dwell(stroke=20.0, dwell_before=90, rise=90, ret=120, dwell_after=60,
+                                  rise_law="cycloidal", return_law="modified_sine")
+    assert cam.master_period == 360.0 and [s.label for s in cam.segments] == ["dwell", "rise", "return", "dwell"]
+    assert cam(180.0) == pytest.approx(20.0) and cam(45.0) == 0.0 and cam(330.0) == pytest.approx(0.0, abs=1e-12)
+    assert cam.check().continuous(2)  # both laws start and end at rest

@@ -12,7 +12,11 @@ from .errors import CamFileError, InputError
 from .laws import law as _law, polynomial_from_boundary
 from .profile import MAX_PERIOD, MIN_PERIOD, MIN_SPAN_FRACTION, CamProfile, Segment
 
-__all__ = ["load_cam", "parse_cam", "read_toml"]
+__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_toml"]
+
+# The built-in cams (the seeds'), shipped with the package: a link to firmware_tables/cams in a
+# checkout, a copy in an installed wheel.
+CAMS_DIR = Path(__file__).resolve().parent / "cams"
 
 _TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "table", "segment"}
 _TABLE_KEYS = {"interp", "points", "tolerance", "master_counts", "slave_counts_per_unit"}

@@ -8,10 +8,10 @@ import math
 import sys
 from pathlib import Path
 
+from .camfile import CAMS_DIR
 from .errors import EcamError, InputError
 
 EXIT_BAD_INPUT = 2
-CAMS_DIR = Path(__file__).resolve().parent / "cams"
 SEED_CAMS = ("combination_drrd", "modified_sine")
 
 

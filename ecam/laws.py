@@ -91,6 +91,9 @@ class Law:
     rest_end: bool = True
     description: str = ""
     _breaks: np.ndarray = field(init=False, repr=False, compare=False)
+    # Characteristic values live on the law itself: a cache keyed by id() would hand a freed
+    # law's values to the next law allocated at the same address.
+    _characteristics: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "_breaks", np.array([p.start for p in self.pieces[1:]]))
@@ -156,13 +159,10 @@ class Law:
         return tuple(float(b) for b in self._breaks)
 
 
-_CHARACTERISTIC_CACHE: dict[tuple[int, int], float] = {}
-
-
 def _characteristic(law: Law, order: int) -> float:
-    key = (id(law), order)
-    if key in _CHARACTERISTIC_CACHE:
-        return _CHARACTERISTIC_CACHE[key]
+    cache = law._characteristics
+    if order in cache:
+        return cache[order]
     value = _peak(law, order)
     for k in range(1, order):
         if law.jumps(k):
@@ -170,7 +170,7 @@ def _characteristic(law: Law, order: int) -> float:
         for at_rest, u in ((law.rest_start, 0.0), (law.rest_end, 1.0)):
             if at_rest and abs(law(u, k)) > 1e-9 * max(1.0, _peak(law, k)):
                 value = math.inf
-    _CHARACTERISTIC_CACHE[key] = value
+    cache[order] = value
     return value
 
 

@@ -374,7 +374,7 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
     if not file.is_file():
         # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
         # also ecam's built-in cams, found by file name.
-        from ecam.cli import CAMS_DIR
+        from ecam.camfile import CAMS_DIR
 
         built_in = CAMS_DIR / Path(raw["file"]).name
         if not built_in.is_file():

@@ -1,0 +1,208 @@
+"""The one validation path: every value a user hands to ecam or hil_sim comes through here.
+
+Cam files, scene files, table settings, mechanics and the Python API all check their inputs with
+these functions, so every refusal has the same shape, one line::
+
+    <field>: <value> should be <what was expected>
+
+``field`` is the dotted name the user wrote (``segment[2].span``, ``mechanics.gear_ratio``,
+``tolerance``); ``value`` is shown by :func:`show`, cut to 60 characters so a hostile value cannot
+flood a terminal. A :class:`Fields` reader adds the file it reads from as a prefix and raises
+:class:`~ecam.errors.CamFileError`; the plain functions raise :class:`~ecam.errors.InputError`.
+Both derive from ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+
+from .errors import CamFileError, InputError
+
+# Largest magnitude any user number may have: far beyond every physical quantity here, small
+# enough that a product of two of them (1e300) stays finite in float64.
+MAX_MAGNITUDE = 1e150
+
+
+def show(value) -> str:
+    """A value for a one-line error message: its repr, cut to 60 characters."""
+    if isinstance(value, float) and math.isfinite(value):
+        text = f"{value:.12g}"
+    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**15:
+        text = f"{value:.6g}"
+    else:
+        text = repr(value)
+    return text if len(text) < 60 else text[:57] + "..."
+
+
+def fail(field: str, value, expected: str, error=InputError) -> InputError:
+    """The error for ``field`` holding ``value`` where ``expected`` was wanted (not raised)."""
+    return error(f"{field}: {show(value)} should be {expected}")
+
+
+def missing(field: str, expected: str, error=InputError) -> InputError:
+    """The error for a required ``field`` that is absent (not raised)."""
+    return error(f"{field}: missing; expected {expected}")
+
+
+def number(field: str, value, *, minimum=None, maximum=None, strict: bool = False,
+           error=InputError) -> float:
+    """``value`` as a finite float within ``[minimum, maximum]``.
+
+    ``strict`` makes the lower bound exclusive (``> minimum``). Without an explicit bound the
+    magnitude is still limited to :data:`MAX_MAGNITUDE`, so arithmetic on it stays finite.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise fail(field, value, "a number", error)
+    try:
+        result = float(value)
+    except OverflowError:  # an int too large for a float
+        raise fail(field, value, f"a number of magnitude <= {MAX_MAGNITUDE:g}", error) from None
+    if not math.isfinite(result):
+        raise fail(field, value, "finite", error)
+    if minimum is not None and (result <= minimum if strict else result < minimum):
+        raise fail(field, value, f"{'>' if strict else '>='} {minimum:g}", error)
+    if maximum is not None and result > maximum:
+        raise fail(field, value, f"<= {maximum:g}", error)
+    if abs(result) > MAX_MAGNITUDE:
+        raise fail(field, value, f"of magnitude <= {MAX_MAGNITUDE:g}", error)
+    return result
+
+
+def positive(field: str, value, *, maximum=None, error=InputError) -> float:
+    """``value`` as a finite float > 0."""
+    return number(field, value, minimum=0.0, strict=True, maximum=maximum, error=error)
+
+
+def integer(field: str, value, *, minimum=None, maximum=None, error=InputError) -> int:
+    """``value`` as an int (not a bool, not a float) within ``[minimum, maximum]``."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise fail(field, value, "an integer", error)
+    if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        if maximum is None:
+            bounds = f">= {minimum}"
+        elif minimum is None:
+            bounds = f"<= {maximum}"
+        else:
+            bounds = f"in {minimum}..{maximum}"
+        raise fail(field, value, f"an integer {bounds}", error)
+    return value
+
+
+def choice(field: str, value, choices: Iterable[str], error=InputError) -> str:
+    """``value``, which must be one of ``choices``."""
+    choices = tuple(choices)
+    if not isinstance(value, str) or value not in choices:
+        raise fail(field, value, f"one of {', '.join(choices)}", error)
+    return value
+
+
+def boolean(field: str, value, error=InputError) -> bool:
+    """``value``, which must be ``True`` or ``False``."""
+    if not isinstance(value, bool):
+        raise fail(field, value, "true or false", error)
+    return value
+
+
+def string(field: str, value, error=InputError) -> str:
+    """``value``, which must be a string."""
+    if not isinstance(value, str):
+        raise fail(field, value, "a string", error)
+    return value
+
+
+class Fields:
+    """Reads the fields of one TOML table (or a nested table of it) with one-line errors.
+
+    Parameters
+    ----------
+    raw : mapping
+        The parsed table.
+    where : str
+        Its dotted name in the file (``""`` at the top level, ``"mechanics"``, ``"segment[2]"``).
+    source : str
+        The file, as shown to the user; it prefixes every message (``scene x.toml: ...``).
+    allowed : iterable of str, optional
+        The field names this table may hold; any other is refused, naming the allowed ones.
+    """
+
+    def __init__(self, raw, where: str = "", source: str = "", allowed=None) -> None:
+        self.where = where
+        self.source = source
+        if not isinstance(raw, Mapping):
+            raise self.error(f"{where or 'file'}: {show(raw)} should be a table ([{where}])")
+        self.raw = raw
+        if allowed is not None:
+            for key in raw:
+                if key not in allowed:
+                    raise self.error(f"{self.name(key)}: unknown field; expected one of "
+                                     f"{', '.join(sorted(allowed))}")
+
+    def error(self, message: str) -> CamFileError:
+        """A :class:`CamFileError` for ``message``, prefixed with the source file."""
+        return CamFileError(f"{self.source}: {message}" if self.source else message)
+
+    def name(self, key: str) -> str:
+        """The dotted name of ``key`` in this table."""
+        return f"{self.where}.{key}" if self.where else key
+
+    def __contains__(self, key: str) -> bool:
+        return key in self.raw
+
+    def _get(self, key: str, required: bool, expected: str):
+        if key not in self.raw:
+            if required:
+                raise self.error(f"{self.name(key)}: missing; expected {expected}")
+            return None
+        return self.raw[key]
+
+    def _checked(self, check, key, *args, **kwargs):
+        try:
+            return check(self.name(key), *args, **kwargs)
+        except InputError as exc:
+            raise self.error(str(exc)) from None
+
+    def table(self, key: str, allowed=None, required: bool = False) -> "Fields":
+        """The nested table ``key`` as a reader (empty when absent and not required)."""
+        value = self._get(key, required, "a table")
+        if value is None:
+            value = {}
+        if not isinstance(value, Mapping):
+            raise self.error(f"{self.name(key)}: {show(value)} should be a table "
+                             f"([{self.name(key)}])")
+        return Fields(value, self.name(key), self.source, allowed)
+
+    def number(self, key: str, *, required=False, default=None, minimum=None, maximum=None,
+               strict=False):
+        value = self._get(key, required, "a number")
+        if value is None:
+            return default
+        return self._checked(number, key, value, minimum=minimum, maximum=maximum, strict=strict)
+
+    def integer(self, key: str, *, required=False, default=None, minimum=None, maximum=None):
+        value = self._get(key, required, "an integer")
+        if value is None:
+            return default
+        return self._checked(integer, key, value, minimum=minimum, maximum=maximum)
+
+    def choice(self, key: str, choices, default=None, required=False):
+        value = self._get(key, required, f"one of {', '.join(choices)}")
+        if value is None:
+            return default
+        return self._checked(choice, key, value, choices)
+
+    def boolean(self, key: str, default=None, required=False):
+        value = self._get(key, required, "true or false")
+        if value is None:
+            return default
+        return self._checked(boolean, key, value)
+
+    def string(self, key: str, default=None, required=False):
+        value = self._get(key, required, "a string")
+        if value is None:
+            return default
+        return self._checked(string, key, value)
+
+    def get(self, key: str, default=None):
+        """The raw value of ``key`` (for fields with a shape of their own)."""
+        return self.raw.get(key, default)

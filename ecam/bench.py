@@ -73,7 +73,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import EcamError, InputError
+from .errors import EcamError, InputError, SimulationError
 from .export import plain
 
 __all__ = [
@@ -362,28 +362,20 @@ def _jobs(plan: BenchPlan) -> list[dict]:
 
 
 def bench_rig(repeats: int = 1, cycles_hz=RIG_CYCLES_HZ, progress=None) -> list[dict]:
-    """Rows of kind 'rig': the shipped scene at each bus cycle rate (never raises)."""
-    try:
-        from hil_sim.demo import SCENES_DIR
-        from hil_sim.rig import run_scene
-        from hil_sim.scene import load_scene
+    """Rows of kind 'rig': the shipped scene at each bus cycle rate.
 
-        scene_path = SCENES_DIR / RIG_SCENE
-        base = load_scene(scene_path)
-    except Exception as exc:  # the rig is optional: report, never crash
-        return [{"kind": "rig", "available": False, "cycle_hz": hz, "scene": RIG_SCENE,
-                 "reason": f"rig not available: {type(exc).__name__}: {exc}"} for hz in cycles_hz]
+    The rig is part of the package, not an option: a rig that fails to run is an error, raised,
+    never a row that looks like a measurement.
+    """
+    from hil_sim.demo import SCENES_DIR
+    from hil_sim.rig import run_scene
+    from hil_sim.scene import load_scene
+
+    base = load_scene(SCENES_DIR / RIG_SCENE)
+    run_scene(base)  # warm-up, not counted: imports and first-call caches
     rows = []
-    try:
-        run_scene(base)  # warm-up, not counted: imports and first-call caches
-    except Exception:
-        pass  # the measured runs report the failure
     for hz in cycles_hz:
-        try:
-            rows.append(_rig_row(base, hz, repeats, run_scene))
-        except Exception as exc:
-            rows.append({"kind": "rig", "available": False, "cycle_hz": hz, "scene": base.name,
-                         "reason": f"scene run failed: {type(exc).__name__}: {exc}"})
+        rows.append(_rig_row(base, hz, repeats, run_scene))
         if progress:
             progress()
     return rows
@@ -393,8 +385,7 @@ def _rig_row(base, hz: int, repeats: int, run_scene) -> dict:
     scene = replace(base, drive=replace(base.drive, cycle_s=1.0 / hz))
     reports = [run_scene(scene) for _ in range(repeats)]
     if not all(r.timing for r in reports):
-        return {"kind": "rig", "available": False, "cycle_hz": hz, "scene": base.name,
-                "reason": "the rig's report has no timing section"}
+        raise SimulationError(f"bench: scene {base.name}: the rig's report has no timing section")
     reports.sort(key=lambda r: r.timing.get("real_time_factor", 0.0))
     report = reports[len(reports) // 2]  # the median run, with its own consistent split
     t = report.timing
@@ -433,42 +424,35 @@ def _rig_split(scene, report):
     notes = ["canopen = loop time outside the drive's control loop (bus, PDO/SYNC handling); "
              "drive_loop = the drive's servo loop minus plant; lookup and plant measured standalone "
              "for the same cycles"]
-    lookup_s = plant_s = None
-    try:
-        import ecam
+    import ecam
 
-        profile = ecam.load_cam(scene.cam.file)
-        spec = scene.cam
-        kwargs = {"interp": spec.interp, "master_counts": spec.master_counts,
-                  "slave_counts_per_unit": spec.slave_counts_per_unit}
-        if spec.points is not None:
-            kwargs["points"] = spec.points
-        if spec.tolerance is not None:
-            kwargs["tolerance"] = spec.tolerance
-        table = ecam.compile_table(profile, certify=False, **kwargs)
-        per_unit = table.master_counts / profile.master_period
-        counts_per_cycle = scene.master.units_per_second(profile.master_period) * per_unit * scene.drive.cycle_s
-        k = np.arange(report.cycles, dtype=np.float64)
-        master_end = np.rint((k + 1.0) * counts_per_cycle).astype(np.int64)
-        master_mid = np.rint((k + 0.5) * counts_per_cycle).astype(np.int64)
-        lookup_s = _median_ns({"lookup": lambda: (table.lookup(master_end), table.slope(master_mid))},
-                              5, 1)["lookup"] * 1e-9
-    except Exception as exc:
-        notes.append(f"lookup share not measured: {type(exc).__name__}: {exc}")
-    try:
-        from hil_sim import plant as plant_module
+    profile = ecam.load_cam(scene.cam.file)
+    spec = scene.cam
+    kwargs = {"interp": spec.interp, "master_counts": spec.master_counts,
+              "slave_counts_per_unit": spec.slave_counts_per_unit}
+    if spec.points is not None:
+        kwargs["points"] = spec.points
+    if spec.tolerance is not None:
+        kwargs["tolerance"] = spec.tolerance
+    table = ecam.compile_table(profile, certify=False, **kwargs)
+    per_unit = table.master_counts / profile.master_period
+    counts_per_cycle = scene.master.units_per_second(profile.master_period) * per_unit * scene.drive.cycle_s
+    k = np.arange(report.cycles, dtype=np.float64)
+    master_end = np.rint((k + 1.0) * counts_per_cycle).astype(np.int64)
+    master_mid = np.rint((k + 0.5) * counts_per_cycle).astype(np.int64)
+    lookup_s = _median_ns({"lookup": lambda: (table.lookup(master_end), table.slope(master_mid))},
+                          5, 1)["lookup"] * 1e-9
+    from hil_sim import plant as plant_module
 
-        plant_class = plant_module.RigidPlant if report.model == "rigid" else plant_module.TwoMassPlant
-        plant = plant_class(scene.mechanics.build(), scene.drive.cycle_s / scene.drive.substeps)
-        plant.reset()
-        steps = report.cycles * scene.drive.substeps
-        step = plant.step
-        start = time.perf_counter()
-        for _ in range(steps):
-            step(0.01)
-        plant_s = time.perf_counter() - start
-    except Exception as exc:
-        notes.append(f"plant share not measured (drive_loop includes it): {type(exc).__name__}: {exc}")
+    plant_class = plant_module.RigidPlant if report.model == "rigid" else plant_module.TwoMassPlant
+    plant = plant_class(scene.mechanics.build(), scene.drive.cycle_s / scene.drive.substeps)
+    plant.reset()
+    steps = report.cycles * scene.drive.substeps
+    step = plant.step
+    start = time.perf_counter()
+    for _ in range(steps):
+        step(0.01)
+    plant_s = time.perf_counter() - start
     return lookup_s, plant_s, notes
 
 

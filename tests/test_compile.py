@@ -190,6 +190,7 @@ def test_auto_meets_the_tolerance_with_the_fewest_bytes(drrd):
         assert auto.nbytes <= fixed.nbytes
 
 
+@pytest.mark.slow
 def test_large_period_is_sampled_not_skipped():
     profile = rise_return("poly345", stroke=10.0)
     table = compile_table(profile, interp="cubic", points=1025, master_counts=2**30, slave_counts_per_unit=1e6)

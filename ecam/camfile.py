@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import stat
 import tomllib
 from pathlib import Path
 
@@ -41,19 +43,53 @@ def load_cam(path) -> CamProfile:
     return parse_cam(read_toml(path, "cam file"), source=str(path))
 
 
+# Cam and scene files are a few kilobytes; this bound keeps a wrong path (a log, an image, a
+# device) from being read whole.
+MAX_FILE_BYTES = 4 * 2**20
+
+
 def read_toml(path, what: str) -> dict:
-    """Parse a TOML file; a missing, unreadable or malformed file is one CamFileError line."""
+    """Parse a TOML file into a mapping.
+
+    Only regular files of at most :data:`MAX_FILE_BYTES` are read, so a device such as
+    ``/dev/zero`` or a FIFO is refused at once instead of read without bound or waited on.
+
+    Raises
+    ------
+    CamFileError
+        A missing, unreadable, irregular, oversized or malformed file (nesting too deep for
+        the parser included): one line naming the file and what is wrong.
+    """
     path = Path(path)
+    shown = repr(str(path))
     try:
-        text = path.read_text(encoding="utf-8")
+        # O_NONBLOCK: opening a FIFO with no writer must not wait; the type check follows.
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise CamFileError(f"{what} {str(path)!r} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CamFileError(f"{what} {str(path)!r} cannot be read: {exc}") from None
+        raise CamFileError(f"{what} {shown} does not exist") from None
+    except OSError as exc:
+        raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as handle:
+        info = os.fstat(handle.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise CamFileError(f"{what} {shown} should be a regular file")
+        if info.st_size > MAX_FILE_BYTES:
+            raise CamFileError(f"{what} {shown}: {info.st_size} bytes should be at most "
+                               f"{MAX_FILE_BYTES}")
+        try:
+            data = handle.read(MAX_FILE_BYTES + 1)
+        except OSError as exc:
+            raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
+    if len(data) > MAX_FILE_BYTES:  # the file grew while we read it
+        raise CamFileError(f"{what} {shown}: more than {MAX_FILE_BYTES} bytes")
     try:
-        return tomllib.loads(text)
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise CamFileError(f"{what} {shown} should be UTF-8 text: {exc.reason} at byte {exc.start}") from None
     except tomllib.TOMLDecodeError as exc:
-        raise CamFileError(f"{what} {str(path)!r} is not valid TOML: {exc}") from None
+        raise CamFileError(f"{what} {shown} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise CamFileError(f"{what} {shown}: arrays or tables nest too deeply to parse") from None
 
 
 def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:

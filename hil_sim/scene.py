@@ -370,7 +370,10 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
         raise r.fail("cam.file", "missing; expected the path of a cam TOML file")
     if not isinstance(raw["file"], str):
         raise r.fail("cam.file", f"{_show(raw['file'])} should be a string")
-    file = (base / raw["file"]).resolve()
+    try:
+        file = (base / raw["file"]).resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
+        raise r.fail("cam.file", f"{raw['file']!r} cannot be resolved: {exc}") from None
     if not file.is_file():
         # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
         # also ecam's built-in cams, found by file name.

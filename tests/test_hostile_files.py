@@ -1,0 +1,84 @@
+"""Hostile files (issue 14): every bad path or file is one line on stderr and exit 2, at once."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ecam.camfile import MAX_FILE_BYTES
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "hil_sim" / "scenes"
+
+
+def run_cli(*args):
+    # A timeout turns a hang (a FIFO waited on, /dev/zero read forever) into a failure.
+    return subprocess.run([sys.executable, "-m", "ecam.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=60)
+
+
+def assert_one_line(run, message):
+    assert run.returncode == 2, run.stderr
+    assert "Traceback" not in run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], run.stderr
+
+
+def nested(depth):
+    return "x = " + "[" * depth + "]" * depth + "\n"
+
+
+def symlink_loop(tmp_path, name):
+    a, b = tmp_path / f"{name}_a.toml", tmp_path / f"{name}_b.toml"
+    a.symlink_to(b)
+    b.symlink_to(a)
+    return a
+
+
+@pytest.mark.parametrize("command", ["check", "compile"])
+def test_device_is_refused_not_read(command):
+    assert_one_line(run_cli(command, "/dev/zero"), "should be a regular file")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this platform")
+def test_fifo_is_refused_not_waited_on(tmp_path):
+    fifo = tmp_path / "cam.toml"
+    os.mkfifo(fifo)
+    assert_one_line(run_cli("check", fifo), "should be a regular file")
+    assert_one_line(run_cli("sim", fifo), "should be a regular file")
+
+
+def test_oversized_file_is_refused(tmp_path):
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * (MAX_FILE_BYTES + 1))
+    assert_one_line(run_cli("check", big), f"should be at most {MAX_FILE_BYTES}")
+
+
+@pytest.mark.parametrize("command", ["check", "compile", "sim"])
+def test_deeply_nested_toml_is_one_line(tmp_path, command):
+    path = tmp_path / "nested.toml"
+    path.write_text(nested(500))
+    assert_one_line(run_cli(command, path), "nest too deeply")
+
+
+def test_symlink_loop_as_cam_and_as_scene(tmp_path):
+    assert_one_line(run_cli("check", symlink_loop(tmp_path, "cam")), "cannot be read")
+    assert_one_line(run_cli("sim", symlink_loop(tmp_path, "scene")), "cannot be read")
+
+
+def test_scene_whose_cam_file_is_a_symlink_loop(tmp_path):
+    loop = symlink_loop(tmp_path, "cam")
+    text = (SCENES / "stiff_coupling.toml").read_text()
+    lines = [f'file = "{loop}"' if line.strip().startswith("file =") else line
+             for line in text.splitlines()]
+    scene = tmp_path / "scene.toml"
+    scene.write_text("\n".join(lines) + "\n")
+    assert_one_line(run_cli("sim", scene), "cam.file")
+
+
+def test_non_utf8_file_is_one_line(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'name = "caf\xe9"\n')
+    assert_one_line(run_cli("check", path), "should be UTF-8 text")

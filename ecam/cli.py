@@ -133,23 +133,19 @@ def cmd_compile(args) -> int:
 
 
 def write_table(table, name, directory: Path, formats) -> list[str]:
+    from .atomic_files import write_files
     from .export import EXPORTERS, identifier
 
+    contents = {}
+    for f in formats:
+        suffix, render = EXPORTERS[f]
+        contents[directory / (identifier(name) + suffix)] = render(table, name)
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        files = []
-        for f in formats:
-            suffix, render = EXPORTERS[f]
-            path = directory / (identifier(name) + suffix)
-            content = render(table, name)
-            if isinstance(content, bytes):
-                path.write_bytes(content)
-            else:
-                path.write_text(content, encoding="utf-8", newline="\n")
-            files.append(str(path))
-        return files
+        write_files(contents)
     except OSError as exc:
-        raise InputError(f"output directory {str(directory)!r} cannot be written: {exc.strerror}") from None
+        raise InputError(f"output directory {str(directory)!r} cannot be written: {exc.strerror or exc}") from None
+    return [str(path) for path in contents]
 
 
 def table_summary(table, files) -> dict:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic_files import write_files
 from .camfile import load_cam
 from .compile import compile_table
 from .export import to_c_header, to_json
@@ -59,10 +60,11 @@ def generate(cams_dir: Path) -> dict[str, bytes]:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     root = Path(argv[0]) if argv else Path(__file__).resolve().parent.parent / "firmware_tables"
-    for relative, content in generate(root / "cams").items():
-        path = root / relative
+    contents = {root / relative: content for relative, content in generate(root / "cams").items()}
+    for path in contents:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(content)
+    write_files(contents)  # all tables and vectors appear together, or none changes
+    for path in contents:
         print(f"wrote {path}")
     return 0
 

@@ -240,7 +240,14 @@ def _solve_polynomial(segments, index, i, law_name, raw, periodic):
             else:
                 value = _number(raw, key, where=where, default=0.0)
             # user units -> normalized: d^k s/du^k = (d^k y/dx^k) * span^k / stroke
-            values.append(value * seg.span**order / seg.stroke)
+            try:
+                normal = value * seg.span**order / seg.stroke
+            except OverflowError:
+                normal = math.inf
+            if not math.isfinite(normal):
+                raise CamFileError(f"{where}.{key}: {value!r} over a span of {seg.span!r} and a stroke of "
+                                   f"{seg.stroke!r} should give a finite normalized value")
+            values.append(normal)
         normalized[end] = values
         for key in (f"{end}_jerk",) if count == 2 else ():
             if key in raw:

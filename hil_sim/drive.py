@@ -112,6 +112,15 @@ def load_od(path, node_id: int):
     return copy.deepcopy(_parsed_od(str(path), node_id))
 
 
+def interpolation_period_s(value: int, index: int) -> float:
+    """0x60C2 (CiA 402: interpolation time period = value x 10^index s) in seconds.
+
+    Divides for negative indexes: 10 x 10.0**-6 is 9.999...e-6, below the 10 us the scene
+    validator allows, where 10 / 10**6 is exactly the float nearest 1e-5.
+    """
+    return value / 10.0 ** -index if index < 0 else value * 10.0 ** index
+
+
 def _wrap_int32(value: int) -> int:
     """Two's complement wrap of an integer to INTEGER32."""
     return (value + (1 << 31)) % _INT32 - (1 << 31)
@@ -330,7 +339,7 @@ class VirtualDrive:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             candidate = dict(value=self._stored(0x60C2, 1), index=self._stored(0x60C2, 2))
             candidate["value" if subindex == 1 else "index"] = value
-            period = candidate["value"] * 10.0 ** candidate["index"]
+            period = interpolation_period_s(candidate["value"], candidate["index"])
             if subindex in (1, 2):
                 if not 1e-5 <= period <= 1.0:
                     raise SdoAbortedError(ABORT_INVALID_VALUE)
@@ -559,7 +568,7 @@ class VirtualDrive:
         if self.counts_per_motor_rad is not None:
             kwargs["counts_per_motor_rad"] = self.counts_per_motor_rad
         if cycle_s is None:
-            cycle_s = self._stored(0x60C2, 1) * 10.0 ** self._stored(0x60C2, 2)
+            cycle_s = interpolation_period_s(self._stored(0x60C2, 1), self._stored(0x60C2, 2))
         self.axis = ServoAxis(self.mechanics, self.gains, cycle_s=cycle_s,
                               substeps=self.substeps, model=self.model,
                               excitation_hz=self.excitation_hz,

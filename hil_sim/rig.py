@@ -113,7 +113,7 @@ def _cycles(scene: Scene, period_units: float, speed_units: float) -> int:
     seconds = d.seconds if d.seconds is not None else d.master_periods * period_units / abs(speed_units)
     cycles = math.ceil(seconds / cycle_s - 1e-9)
     if cycles > 100_000_000:
-        raise InputError(f"duration {seconds:.6g} s at cycle_s {cycle_s} gives {cycles} cycles, "
+        raise InputError(f"duration {seconds:.6g} s at cycle_s {cycle_s} gives {cycles:.3g} cycles, "
                          "should be <= 100000000")
     return max(cycles, 1)
 

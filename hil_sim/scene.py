@@ -76,6 +76,24 @@ INTERPS = ("linear", "cubic", "quintic", "auto")
 GAIN_BANDWIDTH_KEYS = ("velocity_bandwidth_hz", "position_bandwidth_hz", "integral_ratio")
 GAIN_KEYS = ("position_kp", "velocity_kp", "velocity_ki", "velocity_feedforward",
              "acceleration_feedforward")
+# Resolution of the slave in counts per user unit: a nanometre encoder on a metre is 1e9, a
+# coarse one on a degree 1e-3; bounds far outside both keep the count arithmetic finite.
+MIN_COUNTS_PER_UNIT = 1e-6
+MAX_COUNTS_PER_UNIT = 1e12
+
+# Physical range of each mechanics field [SI]: wide enough for a watch motor and a press, narrow
+# enough that products of them (torques, energies, the plant matrices) stay finite in float64.
+# (Upper bounds; the lower bound is 0, exclusive for POSITIVE_MECHANICS, as the plant needs.)
+MECHANICS_RANGES = {
+    "motor_inertia": 1e4, "load_inertia": 1e6, "gear_ratio": 1e4, "gear_efficiency": 1.0,
+    "motor_damping": 1e6, "load_damping": 1e8, "coupling_stiffness": 1e12,
+    "coupling_damping": 1e8, "coupling_rated_torque": 1e8, "coupling_max_torque": 1e8,
+    "motor_torque_limit": 1e6,
+}
+POSITIVE_MECHANICS = frozenset({"motor_inertia", "gear_ratio", "gear_efficiency",
+                                "coupling_stiffness", "coupling_rated_torque",
+                                "coupling_max_torque", "motor_torque_limit"})
+
 MECHANICS_KEYS = ("motor_inertia", "gear_ratio", "gear_efficiency", "motor_damping",
                   "load_damping", "coupling_stiffness", "coupling_damping", "load_inertia",
                   "coupling_rated_torque", "coupling_max_torque", "motor_torque_limit")
@@ -402,8 +420,8 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
         points=r.integer(raw, "points", "cam", minimum=2),
         tolerance=tolerance,
         master_counts=r.integer(raw, "master_counts", "cam", minimum=2, maximum=2**31),
-        slave_counts_per_unit=r.number(raw, "slave_counts_per_unit", "cam", minimum=0.0,
-                                       strict=True))
+        slave_counts_per_unit=r.number(raw, "slave_counts_per_unit", "cam",
+                                       minimum=MIN_COUNTS_PER_UNIT, maximum=MAX_COUNTS_PER_UNIT))
 
 
 def _drive(r: _Reader, data) -> DriveSpec:
@@ -442,7 +460,9 @@ def _mechanics(r: _Reader, data) -> MechanicsSpec:
     values = []
     for key in MECHANICS_KEYS:
         if key in raw:
-            values.append((key, r.number(raw, key, "mechanics")))
+            high = MECHANICS_RANGES[key]
+            values.append((key, r.number(raw, key, "mechanics", minimum=0.0,
+                                         strict=key in POSITIVE_MECHANICS, maximum=high)))
     if "motor_inertia" not in raw:
         raise r.fail("mechanics.motor_inertia", "missing; expected a number [kg m^2]")
     spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=r.number(

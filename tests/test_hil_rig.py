@@ -226,7 +226,7 @@ def test_scene_errors_name_field_value_and_expectation(tmp_path):
         "tracking_error = 0.002 ": ("tracking_error = -1.0 ", "limits.tracking_error: -1.0 should be > 0"),
         'profile = "constant"': ('profile = "sine"', "master.profile: 'sine' should be one of"),
         "cycle_s = 0.001": ("cycle_s = 0.0003333", "drive.cycle_s: 0.0003333 should be n x 10^e"),
-        "coupling_stiffness = 2.0e6": ("coupling_stiffness = -2.0", "coupling_stiffness -2.0 should be > 0"),
+        "coupling_stiffness = 2.0e6": ("coupling_stiffness = -2.0", "mechanics.coupling_stiffness: -2.0 should be > 0"),
         "master_periods = 2.0": ("master_periods = 2.0\ncycles = 5", "exactly one of"),
     }
     for old, (new, message) in cases.items():

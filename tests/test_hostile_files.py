@@ -82,3 +82,43 @@ def test_non_utf8_file_is_one_line(tmp_path):
     path = tmp_path / "latin1.toml"
     path.write_bytes(b'name = "caf\xe9"\n')
     assert_one_line(run_cli("check", path), "should be UTF-8 text")
+
+
+def scene_with(tmp_path, old, new):
+    text = (SCENES / "stiff_coupling.toml").read_text()
+    text = text.replace("../../firmware_tables", str(ROOT / "firmware_tables"))
+    assert old in text
+    path = tmp_path / "scene.toml"
+    path.write_text(text.replace(old, new))
+    return path
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("gear_ratio = 0.1 ", "gear_ratio = 1e300 ", "mechanics.gear_ratio: 1e+300 should be <= 10000"),
+    ("motor_torque_limit = 6.0", "motor_torque_limit = 1e308",
+     "mechanics.motor_torque_limit: 1e+308 should be <="),
+    ("slave_counts_per_unit = 100000", "slave_counts_per_unit = 5e-324",
+     "cam.slave_counts_per_unit: 5e-324 should be >= 1e-06"),
+    ("master_periods = 2.0", "seconds = 1e300", "gives 1e+303 cycles, should be <= 100000000"),
+])
+def test_huge_and_tiny_scene_numbers_are_one_line(tmp_path, old, new, message):
+    assert_one_line(run_cli("sim", scene_with(tmp_path, old, new)), message)
+
+
+def test_smallest_cycle_time_the_validator_allows_runs(tmp_path):
+    # 0x60C2 = 10 x 10^-6 s was computed as 9.999...e-6 and refused by the drive's own check.
+    import hil_sim
+    from hil_sim.drive import interpolation_period_s
+
+    assert interpolation_period_s(10, -6) == 1e-5
+    scene = hil_sim.load_scene(scene_with(tmp_path, "cycle_s = 0.001", "cycle_s = 1e-5"))
+    scene = scene.with_master_speed(36000.0)  # 100 periods/s: a short run
+    report = hil_sim.run_scene(scene)
+    assert report.cycles > 0
+
+
+def test_poly5_boundary_that_overflows_when_normalized(tmp_path):
+    path = tmp_path / "p5.toml"
+    path.write_text('master_period = 360.0\nperiodic = false\n[[segment]]\nlaw = "poly5"\n'
+                    'span = 1e300\nstroke = 1.0\nstart_acceleration = 1.0\n')
+    assert_one_line(run_cli("check", path), "should give a finite normalized value")

@@ -121,6 +121,15 @@ def interpolation_period_s(value: int, index: int) -> float:
     return value / 10.0 ** -index if index < 0 else value * 10.0 ** index
 
 
+def _saturate_int32(value: int) -> int:
+    """Clamp to INTEGER32, the data type of 0x60B1 (CiA 402 velocity offset).
+
+    A position wraps like a modular counter, but a velocity that leaves its type has no
+    meaningful wrap: a sign flip would command full speed backwards. It saturates.
+    """
+    return max(-0x80000000, min(0x7FFFFFFF, value))
+
+
 def _wrap_int32(value: int) -> int:
     """Two's complement wrap of an integer to INTEGER32."""
     return (value + (1 << 31)) % _INT32 - (1 << 31)
@@ -329,6 +338,10 @@ class VirtualDrive:
             return
         value = od.decode_raw(data)
         key = (index, subindex)
+        if key == (0x6076, 0) and value == 0:
+            # Motor rated torque divides every torque report (0x6077 is per mille of it): zero
+            # would make them infinite, so it is out of range (CiA 301 abort 0x06090030).
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
         if key in self.values:
             self._set_value(key, value)
         elif index == 0x1017:
@@ -727,7 +740,7 @@ class VirtualDrive:
                 if values[(0x2004, 0)] == 1 and self._active_table is not None:
                     target, velocity = self._cam_target()
                     values[(0x607A, 0)] = _wrap_int32(target)
-                    values[(0x60B1, 0)] = round(velocity)
+                    values[(0x60B1, 0)] = _saturate_int32(round(velocity))
                 else:
                     target, velocity = values[(0x607A, 0)], values[(0x60B1, 0)]
             elif state == OPERATION_ENABLED:

@@ -486,3 +486,25 @@ def test_master_that_reverses_jitters_and_stops_inside_a_segment(rig, tables):
     assert rig.drive.state == cia402.OPERATION_ENABLED
     following = rig.drive.values[(0x60F4, 0)]
     assert abs(following) <= rig.drive.values[(0x6065, 0)]
+
+
+def test_motor_rated_torque_zero_is_refused_and_the_drive_keeps_running(rig):
+    # 0x6076 = 0 was accepted, then every SYNC divided by it (issue 14, item 11).
+    rig.boot_and_enable()
+    before = rig.node.sdo[0x6076].raw
+    with pytest.raises(canopen.SdoAbortedError) as error:
+        rig.node.sdo[0x6076].raw = 0
+    assert error.value.code == drv.ABORT_INVALID_VALUE
+    assert rig.node.sdo[0x6076].raw == before
+    rig.master.sync.transmit()
+    rig.master.settle()
+    assert rig.node.sdo[0x6041].raw & 0x6F == 0x27  # still operation enabled
+
+
+@pytest.mark.parametrize("value,expected", [
+    (0, 0), (2**31 - 1, 2**31 - 1), (2**31, 2**31 - 1), (-(2**31), -(2**31)),
+    (-(2**31) - 1, -(2**31)), (-9_900_000_000_000, -(2**31)),
+])
+def test_velocity_offset_saturates_at_integer32(value, expected):
+    # 0x60B1 is INTEGER32: a velocity beyond it saturates; wrapping would reverse its sign.
+    assert drv._saturate_int32(value) == expected

@@ -220,7 +220,38 @@ def cmd_bench(args) -> int:
 def cmd_sim(args) -> int:
     from hil_sim import cli as hil_cli
 
-    return hil_cli.sim_command(args)
+    single = len(args.scene) == 1 and Path(args.scene[0]).suffix == ".toml"
+    if single and not (args.junit or args.html or args.jobs != 1):
+        args.scene = args.scene[0]  # one scene: the report as before, text or JSON
+        return hil_cli.sim_command(args)
+    return _sim_many(args)
+
+
+def _sim_many(args) -> int:
+    """Several scenes: a progress line each, a summary table, JUnit XML and HTML on request."""
+    from .app.html_report import html_report
+    from .app.junit import junit_xml
+    from .app.multi import exit_status, run_scenes, summary_table
+    from .atomic_files import write_files
+
+    if args.json or args.plot or args.find_max_speed:
+        raise InputError("--json, --plot and --find-max-speed take one scene file; "
+                         f"{len(args.scene)} scene argument(s) given")
+    for option in (args.junit, args.html):
+        if option is not None and not Path(option).resolve().parent.is_dir():
+            raise InputError(f"output {option!r}: its directory does not exist")
+    results = run_scenes(args.scene, args.jobs, progress=lambda line: print(line, file=sys.stderr))
+    print(summary_table(results))
+    outputs = {}
+    if args.junit:
+        outputs[Path(args.junit)] = junit_xml(results)
+    if args.html:
+        outputs[Path(args.html)] = html_report(results)
+    try:
+        write_files(outputs)
+    except OSError as exc:
+        raise InputError(f"report files cannot be written: {exc.strerror or exc}") from None
+    return exit_status(results)
 
 
 def cmd_drive(args) -> int:
@@ -277,6 +308,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sim", help="run a scene on the software-in-the-loop rig")
     if hil_cli is not None and hasattr(hil_cli, "add_sim_arguments"):
         hil_cli.add_sim_arguments(p)
+    p.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="run several scenes in N parallel processes (same reports) [1]")
+    p.add_argument("--junit", metavar="FILE.xml",
+                   help="write JUnit XML: a testsuite per scene, a testcase per check")
+    p.add_argument("--html", metavar="FILE.html",
+                   help="write one self-contained HTML report (verdict, checks, plots, scene)")
     p.set_defaults(func=cmd_sim)
     p = sub.add_parser("drive", help="run a virtual CiA 402 drive until interrupted")
     if hil_cli is not None and hasattr(hil_cli, "add_drive_arguments"):

@@ -18,12 +18,13 @@ import json
 import sys
 import threading
 
-from ecam.errors import EcamError
+from ecam.errors import EcamError, InputError
 
 
 def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the ``sim`` command."""
-    parser.add_argument("scene", help="scene file (TOML), see hil_sim/scenes/")
+    parser.add_argument("scene", nargs="+",
+                        help="scene file(s) (TOML) or directories of them, see hil_sim/scenes/")
     parser.add_argument("--json", action="store_true",
                         help="print the report as JSON (deterministic: same scene, same bytes)")
     parser.add_argument("--timing", action="store_true",
@@ -54,7 +55,13 @@ def sim_command(args: argparse.Namespace) -> int:
     from hil_sim.rig import find_max_speed, run_scene
     from hil_sim.scene import load_scene
 
-    scene = load_scene(args.scene)
+    path = args.scene
+    if isinstance(path, list):  # `hil-sim sim` parses SCENE... like `ecam sim`
+        if len(path) != 1:
+            raise InputError(f"hil-sim sim: {len(path)} scenes given; it runs one "
+                             "(`ecam sim` runs several)")
+        path = path[0]
+    scene = load_scene(path)
     report = run_scene(scene, plot=args.plot)
     search = find_max_speed(scene) if args.find_max_speed else None
     if args.json:

@@ -1,0 +1,228 @@
+"""pytest plugin: scene files as tests, and helpers to run scenes from Python tests.
+
+Installed with the package (entry point group ``pytest11``, name ``ecam``), so pytest loads it
+in every run, where it does nothing unless asked:
+
+``pytest --ecam-scenes DIR``
+    Every scene file under ``DIR`` (recursively: ``*.toml`` files with a scene section such
+    as ``[master]`` or ``[limits]``, see :func:`ecam.app.multi.is_scene_file`; cam files in the
+    same directory are skipped) becomes **one test item per scene**, named
+    ``DIR/<file>.toml::<file stem>``. The item runs the scene on the rig; it fails when any
+    check fails, and its failure message is the failed checks' lines (value, limit, by how
+    much, where: :meth:`hil_sim.report.Check.line`), one per line, first failure first, so the
+    one-line summary of ``pytest -ra`` and the ``failure`` message of ``--junitxml`` both name
+    the check. A scene file with a bad field fails its item with the one-line error. The whole
+    text report is attached to the item (``pytest -rA`` shows it for passing scenes too).
+    One item per scene rather than per check: the checks are only known once the scene has
+    run, and a scene runs once however many checks it has (per-check results are in
+    ``ecam sim --junit``). The option may be given several times.
+
+``pytest --ecam-html FILE``
+    Also write one self-contained HTML report (:func:`ecam.app.html_report.html_report`) of
+    the scenes the session ran: the scene items, and the scenes run through the ``run_scene``
+    fixture.
+
+For Python tests::
+
+    from ecam.app.pytest_plugin import assert_passes, run_scene
+
+    def test_knife_at_120_rpm():
+        report = run_scene("scenes/knife.toml", master_periods=1.0)
+        assert_passes(report)          # prints every check line; fails with the failed ones
+        assert report.check("wind_up").ratio < 0.5
+
+or the ``run_scene`` fixture, which does the same and adds the run to ``--ecam-html``.
+
+Only :mod:`pytest` is imported at module level: the plugin is loaded into every pytest
+process, so the rig (numpy, the CAN stack) is imported only when a scene runs.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+__all__ = ["run_scene", "assert_passes", "SceneFailure"]
+
+_RESULTS = pytest.StashKey[list]()
+_DIRS = pytest.StashKey[list]()
+
+
+class SceneFailure(AssertionError):
+    """A scene ran and at least one of its checks failed; the message is the check lines."""
+
+    def __init__(self, report) -> None:
+        self.report = report
+        lines = [c.line() for c in report.failed]
+        lines.append(f"scene {report.scene}: {len(report.failed)} of {len(report.checks)} "
+                     f"checks failed ({report.model_reason})")
+        super().__init__("\n".join(lines))
+
+
+def run_scene(scene, *, cycles: int | None = None, seconds: float | None = None,
+              master_periods: float | None = None):
+    """Run a scene on the rig and return its :class:`~hil_sim.report.Report`.
+
+    Parameters
+    ----------
+    scene : str, Path or hil_sim.scene.Scene
+        A scene file, or a scene already loaded.
+    cycles, seconds, master_periods : optional
+        At most one: run for this long instead of the scene's ``[duration]`` (a shorter run
+        keeps a unit test fast).
+
+    Raises
+    ------
+    ecam.errors.EcamError
+        A bad scene file or duration, or a run the rig cannot do.
+    """
+    from dataclasses import replace
+
+    from ecam.errors import InputError
+    from hil_sim.rig import run_scene as rig_run_scene
+    from hil_sim.scene import DurationSpec, Scene, load_scene
+
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    given = {k: v for k, v in (("cycles", cycles), ("seconds", seconds),
+                                ("master_periods", master_periods)) if v is not None}
+    if len(given) > 1:
+        raise InputError(f"duration: {', '.join(given)} given; expected at most one of "
+                         "cycles, seconds, master_periods")
+    if given:
+        (key, value), = given.items()
+        if key == "cycles":
+            valid = isinstance(value, int) and not isinstance(value, bool) and value >= 1
+        else:
+            valid = isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0
+        if not valid:
+            raise InputError(f"{key}: {value!r} should be "
+                             f"{'an integer >= 1' if key == 'cycles' else 'a number > 0'}")
+        scene = replace(scene, duration=DurationSpec(**given))
+    return rig_run_scene(scene)
+
+
+def assert_passes(report) -> None:
+    """Print every check line of ``report``; raise :class:`SceneFailure` if any check failed.
+
+    The printed text is the report's text (:meth:`hil_sim.report.Report.to_text`); pytest
+    shows it beside a failure. The failure message is the failed checks' lines.
+    """
+    __tracebackhide__ = True
+    print(report.to_text(), end="")
+    if not report.passed:
+        raise SceneFailure(report)
+
+
+# ------------------------------------------------------------------------------------------
+# Hooks
+
+def pytest_addoption(parser) -> None:
+    group = parser.getgroup("ecam", "ecam software-in-the-loop scenes")
+    group.addoption("--ecam-scenes", action="append", default=[], metavar="DIR",
+                    help="run every scene file (*.toml with scene sections) under DIR as a "
+                         "test item; may be given several times")
+    group.addoption("--ecam-html", default=None, metavar="FILE",
+                    help="write one self-contained HTML report of the scenes run")
+
+
+def pytest_configure(config) -> None:
+    config.stash[_RESULTS] = []
+    dirs = []
+    for item in config.getoption("ecam_scenes") or []:
+        path = Path(item)
+        if not path.is_dir():
+            raise pytest.UsageError(f"--ecam-scenes: {item!r} should be a directory")
+        dirs.append(path.resolve())
+    config.stash[_DIRS] = dirs
+    html = config.getoption("ecam_html")
+    if html and not Path(html).resolve().parent.is_dir():
+        raise pytest.UsageError(f"--ecam-html: directory of {html!r} does not exist")
+    # Collect the directories even when they are outside the paths given to pytest (or its
+    # testpaths); pytest drops a file it reaches twice.
+    for path in dirs:
+        if str(path) not in config.args:
+            config.args.append(str(path))
+
+
+def pytest_report_header(config):
+    dirs = config.stash.get(_DIRS, [])
+    if dirs:
+        return "ecam scenes: " + ", ".join(str(d) for d in dirs)
+    return None
+
+
+def pytest_collect_file(file_path: Path, parent):
+    dirs = parent.config.stash.get(_DIRS, [])
+    if not dirs or file_path.suffix != ".toml":
+        return None
+    resolved = file_path.resolve()
+    if not any(resolved.is_relative_to(d) for d in dirs):
+        return None
+    from ecam.app.multi import is_scene_file
+
+    if not is_scene_file(resolved):
+        return None
+    return SceneFile.from_parent(parent, path=file_path)
+
+
+class SceneFile(pytest.File):
+    """A scene file: one item, run when the session runs it (collection runs nothing)."""
+
+    def collect(self):
+        yield SceneItem.from_parent(self, name=self.path.stem)
+
+
+class SceneItem(pytest.Item):
+    """One scene on the rig; fails with the failed checks' lines."""
+
+    def runtest(self) -> None:
+        from ecam.errors import EcamError
+
+        start = time.perf_counter()
+        try:
+            report = run_scene(self.path)
+        except EcamError as exc:
+            self.config.stash[_RESULTS].append((self.path, exc, time.perf_counter() - start))
+            raise
+        self.config.stash[_RESULTS].append((self.path, report, time.perf_counter() - start))
+        self.user_properties += [("model", report.model), ("cycles", report.cycles)]
+        self.add_report_section("call", "ecam report", report.to_text())
+        if not report.passed:
+            raise SceneFailure(report)
+
+    def repr_failure(self, excinfo, style=None):
+        from ecam.errors import EcamError
+
+        if isinstance(excinfo.value, (SceneFailure, EcamError)):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style=style)
+
+    def reportinfo(self):
+        return self.path, None, f"scene {self.name}"
+
+
+@pytest.fixture(name="run_scene")
+def run_scene_fixture(request):
+    """:func:`run_scene`, with the run added to the ``--ecam-html`` report."""
+
+    def run(scene, **duration):
+        start = time.perf_counter()
+        report = run_scene(scene, **duration)
+        request.config.stash[_RESULTS].append((scene, report, time.perf_counter() - start))
+        return report
+
+    return run
+
+
+def pytest_sessionfinish(session) -> None:
+    target = session.config.getoption("ecam_html")
+    if not target:
+        return
+    from ecam.app.html_report import html_report
+    from ecam.atomic_files import write_files
+
+    results = session.config.stash.get(_RESULTS, [])
+    write_files({Path(target): html_report(results, title="ecam scenes (pytest)")})

@@ -812,7 +812,7 @@ def contract_rows(rows: list[dict]) -> list[dict]:
 
 def main(args) -> int:
     """`ecam bench [--json] [--plot FILE.png] [--quick]`."""
-    from .cli import _progress
+    from .app.progress import progress_bar as _progress
 
     rows = run_bench(quick=bool(args.quick), progress=_progress("ecam bench"))
     if args.plot:

@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+from .app.progress import progress_bar as _progress
 from .camfile import CAMS_DIR
 from .errors import EcamError, InputError
 
@@ -18,22 +19,6 @@ SEED_CAMS = ("combination_drrd", "modified_sine")
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, status 2, as for every other bad input
         raise InputError(f"{self.prog}: {message}")
-
-
-def _progress(label):
-    """A one-line progress bar on stderr (only when it is a terminal)."""
-    if not sys.stderr.isatty():
-        return None
-
-    def show(done, total):
-        width = 30
-        filled = int(width * done / max(total, 1))
-        sys.stderr.write(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {100 * done // max(total, 1):3d}%")
-        if done >= total:
-            sys.stderr.write("\r" + " " * (len(label) + width + 8) + "\r")
-        sys.stderr.flush()
-
-    return show
 
 
 # --- laws ---------------------------------------------------------------------------------------

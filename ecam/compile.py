@@ -14,7 +14,7 @@ import numpy as np
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
-    HEADER_BYTES, KINDS, MAX_MASTER_COUNTS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
+    HEADER_BYTES, INTERPOLATIONS, KINDS, MAX_MASTER_COUNTS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
     overflow_proof,
 )
 
@@ -78,7 +78,7 @@ def compile_table(
         interp = defaults.get("interp", "cubic")
         if interp == "auto" and points is not None:
             interp = "cubic"  # the file's 'auto' needs its tolerance; explicit points mean a fixed size
-    if interp not in (*KINDS, "auto"):
+    if interp not in INTERPOLATIONS:
         raise InputError(f"interp {interp!r} should be one of linear, cubic, quintic, auto")
     if points is None and tolerance is None:
         points, tolerance = defaults.get("points"), defaults.get("tolerance")

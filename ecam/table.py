@@ -16,9 +16,11 @@ import numpy as np
 
 from .errors import InputError, TableFormatError
 
-__all__ = ["TableFormat", "CamTable", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "MAGIC"]
+__all__ = ["TableFormat", "CamTable", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "MAGIC"]
 
 KINDS = {"linear": 1, "cubic": 3, "quintic": 5}
+# Every name a user may ask for: a kind, or "auto" (the smallest table of any kind within a tolerance).
+INTERPOLATIONS = (*KINDS, "auto")
 _KIND_NAMES = {v: k for k, v in KINDS.items()}
 SLOPE_BITS = 16
 HEADER_BYTES = 64

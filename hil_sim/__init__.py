@@ -5,13 +5,18 @@ coupling and load, driven by a master-axis loop over python-can's virtual bus.
 use, so importing the package (as every ``ecam`` command does) does not load the CAN stack.
 """
 
+from pathlib import Path
+
+# The shipped example scenes (the demo's and the bench's).
+SCENES_DIR = Path(__file__).resolve().parent / "scenes"
+
 _LAZY = {
     "VirtualDrive": ("hil_sim.drive", "VirtualDrive"),
     "run_scene": ("hil_sim.rig", "run_scene"),
     "find_max_speed": ("hil_sim.rig", "find_max_speed"),
     "load_scene": ("hil_sim.scene", "load_scene"),
 }
-__all__ = sorted(_LAZY)
+__all__ = ["SCENES_DIR", *sorted(_LAZY)]
 
 
 def __getattr__(name):

@@ -49,7 +49,7 @@ def test_compile_writes_its_files_through_the_atomic_path(tmp_path):
     out = tmp_path / "tables"
     out.mkdir()
     (out / "modified_sine.h").symlink_to(victim)
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "compile", str(CAM), "--points", "65",
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "compile", str(CAM), "--points", "65",
                           "-o", str(out), "--format", "c,bin"], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert victim.read_text() == "precious"

@@ -16,7 +16,7 @@ import pytest
 
 from ecam.errors import SimulationError
 
-from ecam import bench
+from ecam.app import bench
 
 # Builds and times C and runs the bench: the full suite only (quick subset: -m "not slow").
 pytestmark = pytest.mark.slow
@@ -36,7 +36,7 @@ def quick_run(tmp_path_factory):
     plot = tmp_path_factory.mktemp("bench") / "pareto.png"
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.run(
-        [sys.executable, "-m", "ecam.cli", "bench", "--quick", "--json", "--plot", str(plot)],
+        [sys.executable, "-m", "ecam.app", "bench", "--quick", "--json", "--plot", str(plot)],
         cwd=ROOT, env=env, capture_output=True, text=True, timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
@@ -160,13 +160,13 @@ def test_checksum_is_the_drivers_formula():
 
 
 def test_target_verdicts_say_by_how_much():
-    missed = bench._target("x", 0.5, "<=", 0.25, {}, "")
+    missed = bench.target("x", 0.5, "<=", 0.25, {}, "")
     assert missed["met"] is False and "MISSED by 2x" in missed["verdict"]
-    short = bench._target("y", 10.0, ">=", 20.0, {}, "")
+    short = bench.target("y", 10.0, ">=", 20.0, {}, "")
     assert short["met"] is False and "MISSED by 2x" in short["verdict"] and "50% short" in short["verdict"]
-    met = bench._target("z", 0.05, "<=", 0.1, {}, "")
+    met = bench.target("z", 0.05, "<=", 0.1, {}, "")
     assert met["met"] is True and "2x margin" in met["verdict"]
-    assert bench._target("w", None, "<=", 1.0, {}, "no data")["met"] is None
+    assert bench.target("w", None, "<=", 1.0, {}, "no data")["met"] is None
 
 
 def test_worst_over_cams_takes_the_largest_error_and_bytes():
@@ -183,8 +183,8 @@ def test_worst_over_cams_takes_the_largest_error_and_bytes():
 def test_a_table_row_without_scipy_or_c_leaves_those_timings_empty():
     plan = bench.BenchPlan(laws=("cycloidal",), intervals={}, auto_tolerances=(), kind_tolerances=(),
                            queries=512, repeats=1, rig_repeats=1)
-    ctx = bench._LawContext("cycloidal", bench.bench_queries(plan.queries))
-    row = bench._bench_table(ctx, {"law": "cycloidal", "interp": "cubic", "intervals": 144}, plan, None, [], None)
+    ctx = bench.LawContext("cycloidal", bench.bench_queries(plan.queries))
+    row = bench.bench_table(ctx, {"law": "cycloidal", "interp": "cubic", "intervals": 144}, plan, None, [], None)
     for key in ("c", "c_sequential", "scipy_cubic", "scipy_pchip"):
         assert row["ns_per_lookup"][key] is None and row["ratio_to_numpy_interp"][key] is None
     assert row["c_checksum_match"] is None and row["points"] == 145
@@ -194,16 +194,16 @@ def test_a_table_row_without_scipy_or_c_leaves_those_timings_empty():
 def test_no_compiler_gives_a_note_not_a_crash(tmp_path, monkeypatch):
     monkeypatch.setenv("PATH", str(tmp_path))
     monkeypatch.delenv("CC", raising=False)
-    runtime = bench._CRuntime(tmp_path)
+    runtime = bench.CRuntime(tmp_path)
     assert runtime.executable is None and "no C compiler" in runtime.note
 
 
 def test_a_broken_rig_is_an_error_not_a_row(monkeypatch):
-    import hil_sim.rig
+    import ecam.app.bench.rig
 
     def broken(scene, **kwargs):
         raise SimulationError("scene x: broken on purpose")
 
-    monkeypatch.setattr(hil_sim.rig, "run_scene", broken)
+    monkeypatch.setattr(ecam.app.bench.rig, "run_scene", broken)
     with pytest.raises(SimulationError, match="broken on purpose"):
         bench.bench_rig(repeats=1)

@@ -71,7 +71,7 @@ def test_bad_files_name_field_value_and_expectation(tmp_path, text, message):
 @pytest.mark.parametrize("text,message", BAD[:6])
 def test_cli_prints_one_line_and_exits_2(tmp_path, text, message):
     path = write(tmp_path, text)
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(path)], capture_output=True, text=True)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "check", str(path)], capture_output=True, text=True)
     assert run.returncode == 2
     assert run.stdout == ""
     lines = run.stderr.strip().splitlines()
@@ -79,7 +79,7 @@ def test_cli_prints_one_line_and_exits_2(tmp_path, text, message):
 
 
 def test_missing_file_is_one_line(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(tmp_path / "nope.toml")],
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "check", str(tmp_path / "nope.toml")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "does not exist" in run.stderr and len(run.stderr.strip().splitlines()) == 1
 
@@ -126,7 +126,7 @@ def test_combination_in_a_file_needs_a_ratio(tmp_path):
 @pytest.mark.parametrize("target,message", [("plot.xyz", "has format 'xyz'"), ("missing/plot.png", "does not exist")])
 def test_plot_to_a_bad_path_is_one_line(tmp_path, target, message):
     path = write(tmp_path, GOOD)
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "plot", str(path), "-o", str(tmp_path / target)],
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "plot", str(path), "-o", str(tmp_path / target)],
                          capture_output=True, text=True)
     assert run.returncode == 2 and message in run.stderr and len(run.stderr.strip().splitlines()) == 1
 
@@ -150,7 +150,7 @@ stroke = 1.0
 @pytest.mark.parametrize("text,message", EXTREME)
 def test_extreme_numbers_are_bad_input_not_a_crash(tmp_path, text, message):
     path = write(tmp_path, text)
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "check", str(path)], capture_output=True, text=True)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "check", str(path)], capture_output=True, text=True)
     assert run.returncode == 2, run.stderr
     assert len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
 
@@ -174,5 +174,5 @@ def test_table_tolerance_in_counts(tmp_path):
 def test_more_cli_bad_input(tmp_path, args, message):
     cam = write(tmp_path, GOOD)
     args = [a.format(cam=cam, tmp=tmp_path) for a in args]
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", *args], capture_output=True, text=True)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", *args], capture_output=True, text=True)
     assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr

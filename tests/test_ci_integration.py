@@ -378,7 +378,7 @@ def test_ecam_sim_several_scenes_writes_junit_and_html(tmp_path):
 
     scenes = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
     junit, html = tmp_path / "r.xml", tmp_path / "r.html"
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "sim", str(scenes / "stiff_coupling.toml"),
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(scenes / "stiff_coupling.toml"),
                           str(scenes / "soft_coupling.toml"), "--junit", str(junit), "--html", str(html)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 1, run.stderr  # soft_coupling fails: not every scene passed
@@ -388,6 +388,6 @@ def test_ecam_sim_several_scenes_writes_junit_and_html(tmp_path):
     assert [s.get("name") for s in suites.iter("testsuite")] == ["stiff_coupling", "soft_coupling"]
     assert int(suites.get("failures")) >= 2
     assert html.read_text().lstrip().lower().startswith("<!doctype html>")
-    one = subprocess.run([sys.executable, "-m", "ecam.cli", "sim", str(scenes), "--json"],
+    one = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(scenes), "--json"],
                          capture_output=True, text=True, timeout=60)
     assert one.returncode == 2 and len(one.stderr.strip().splitlines()) == 1

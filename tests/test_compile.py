@@ -230,7 +230,7 @@ def test_bad_input(kwargs, message, msine):
 def test_compile_cli_json_contract(tmp_path):
     from conftest import CAMS
 
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "compile", str(CAMS / "modified_sine.toml"),
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "compile", str(CAMS / "modified_sine.toml"),
                           "--interp", "cubic", "--points", "257", "-o", str(tmp_path), "--format", "c,bin,csv,json",
                           "--json"], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
@@ -256,7 +256,7 @@ def test_compile_cli_json_contract(tmp_path):
 def test_compile_cli_bad_input_is_one_line(args, message, tmp_path):
     from conftest import CAMS
 
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "compile", str(CAMS / "modified_sine.toml"),
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "compile", str(CAMS / "modified_sine.toml"),
                           "-o", str(tmp_path), *args], capture_output=True, text=True)
     assert run.returncode == 2
     assert len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
@@ -265,14 +265,14 @@ def test_compile_cli_bad_input_is_one_line(args, message, tmp_path):
 def test_generated_firmware_tables_are_reproducible():
     """Regenerate firmware_tables/ and compare byte for byte with the committed files."""
     from conftest import ROOT
-    from ecam.firmware import generate
+    from ecam.app.firmware import generate
 
     files = generate(ROOT / "firmware_tables" / "cams")
     assert files
     for relative, content in files.items():
         path = ROOT / "firmware_tables" / relative
-        assert path.exists(), f"{relative} is not committed; run python3 -m ecam.firmware"
-        assert path.read_bytes() == content, f"{relative} differs; run python3 -m ecam.firmware"
+        assert path.exists(), f"{relative} is not committed; run python3 -m ecam.app.firmware"
+        assert path.read_bytes() == content, f"{relative} differs; run python3 -m ecam.app.firmware"
 
 
 @pytest.mark.parametrize("kind", KINDS)

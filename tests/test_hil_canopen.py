@@ -437,7 +437,8 @@ def test_drive_command_serves_a_canopen_master_until_stopped(scene):
     import argparse
     from pathlib import Path
 
-    from hil_sim.cli import add_drive_arguments, drive_command
+    from ecam.app.cli import add_drive_arguments
+    from ecam.app.rig_commands import drive_command
 
     channel = f"test-hil-cli-{next(_channels)}"
     parser = argparse.ArgumentParser()

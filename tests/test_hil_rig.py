@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from ecam.errors import CamFileError, InputError
 from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, Faults, frame_bits
-from hil_sim.cli import main
+from ecam.app.cli import hil_sim_main as main
 from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.scene import DurationSpec, load_scene, parse_scene
 
@@ -281,7 +281,7 @@ def test_a_master_faster_than_half_a_period_per_cycle_is_bad_input(tmp_path):
     text = text.replace('file = "../../firmware_tables', f'file = "{scenes.parent.parent / "firmware_tables"}')
     scene = tmp_path / "fast.toml"
     scene.write_text(text)
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "sim", str(scene)], capture_output=True, text=True)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(scene)], capture_output=True, text=True)
     assert run.returncode == 2 and "more than half the cam period" in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1
 
@@ -290,6 +290,6 @@ def test_drive_node_id_zero_is_refused():
     import subprocess
     import sys
 
-    run = subprocess.run([sys.executable, "-m", "ecam.cli", "drive", "--node-id", "0"], capture_output=True,
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "drive", "--node-id", "0"], capture_output=True,
                          text=True, timeout=60)
     assert run.returncode == 2 and "node_id 0 should be" in run.stderr

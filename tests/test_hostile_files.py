@@ -15,7 +15,7 @@ SCENES = ROOT / "hil_sim" / "scenes"
 
 def run_cli(*args):
     # A timeout turns a hang (a FIFO waited on, /dev/zero read forever) into a failure.
-    return subprocess.run([sys.executable, "-m", "ecam.cli", *map(str, args)],
+    return subprocess.run([sys.executable, "-m", "ecam.app", *map(str, args)],
                           capture_output=True, text=True, timeout=60)
 
 

@@ -67,7 +67,7 @@ def test_math_core_imports_no_can_and_no_plotting():
     import subprocess
     import sys
 
-    code = ("import sys, ecam, ecam.compile, ecam.export, ecam.firmware; "
+    code = ("import sys, ecam, ecam.compile, ecam.export, ecam.app.firmware; "
             "print(sorted(m for m in ('can', 'canopen', 'matplotlib', 'scipy') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

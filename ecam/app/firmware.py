@@ -1,7 +1,7 @@
 """Generate firmware_tables/: the seed cams' tables and golden vectors, byte for byte
 reproducible (no dates: a format version and a content CRC instead).
 
-    python3 -m ecam.firmware [DIR]    # default: the repository's firmware_tables/
+    python3 -m ecam.app.firmware [DIR]    # default: the repository's firmware_tables/
 """
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic_files import write_files
-from .camfile import load_cam
-from .compile import compile_table
-from .export import to_c_header, to_json
+from ecam.atomic_files import write_files
+from ecam.camfile import load_cam
+from ecam.compile import compile_table
+from ecam.export import to_c_header, to_json
 
 KINDS = ("linear", "cubic", "quintic")
+FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_tables"
 VECTOR_SEED = 20261121
 
 
@@ -59,7 +60,7 @@ def generate(cams_dir: Path) -> dict[str, bytes]:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    root = Path(argv[0]) if argv else Path(__file__).resolve().parent.parent / "firmware_tables"
+    root = Path(argv[0]) if argv else FIRMWARE_DIR
     contents = {root / relative: content for relative, content in generate(root / "cams").items()}
     for path in contents:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,85 @@
+"""The bench as text, and the `--json` rows with the contract keys."""
+
+from __future__ import annotations
+
+from .targets import TARGET_TEXT
+
+
+def _cell(value, fmt="{:.1f}", width=7):
+    return f"{'-' if value is None else fmt.format(value):>{width}s}"
+
+
+def format_text(rows: list[dict]) -> str:
+    """The human report: notes, the table, the rig and the targets."""
+    lines = ["ecam bench: error against bytes and lookup cost of the cam-table kinds", ""]
+    lines += [f"  {r['text']}" for r in rows if r.get("kind") == "note"]
+    lines += [
+        "",
+        "  err: the certificate's measured max error over every master count (bound: its certified bound);",
+        "  ns: median ns per lookup; py/np, pyseq/, C/np: ratio to numpy.interp on the same queries",
+        "  (pyseq/: Python sequential / numpy.interp sequential);",
+        "  peers use the same points in float64: np = numpy.interp, CS = scipy CubicSpline, PC = scipy Pchip;",
+        "  C ok: the C checksum equals the Python lookup's on both query sets.",
+        "",
+    ]
+    head = (f"{'law':16s} {'interp':14s} {'tol':>6s} {'points':>6s} {'bytes':>7s} {'err cnt':>9s} {'err/strk':>8s} "
+            f"{'bound':>9s} {'comp ms':>7s} | {'py rnd':>7s} {'py seq':>7s} {'C rnd':>7s} {'C seq':>7s} "
+            f"{'np rnd':>7s} {'np seq':>7s} {'CS':>7s} {'PC':>7s} | "
+            f"{'py/np':>6s} {'pyseq/':>6s} {'C/np':>6s} {'C ok':>4s}")
+    lines += [head, "-" * len(head)]
+    for r in rows:
+        if r.get("kind") != "table":
+            continue
+        ns, ratio = r["ns_per_lookup"], r["ratio_to_numpy_interp"]
+        interp = r["interp"] if r["interp"] != "auto" else f"auto:{r['chosen_interp']}"
+        tol = "" if r["tolerance_fraction"] is None else f"{r['tolerance_fraction']:.0e}"
+        ok = {True: "yes", False: "NO", None: "-"}[r["c_checksum_match"]]
+        lines.append(
+            f"{r['law']:16s} {interp:14s} {tol:>6s} {r['points']:6d} {r['bytes']:7d} {r['max_error_counts']:9.3g} "
+            f"{r['max_error_fraction']:8.1e} {r['predicted_error_counts']:9.3g} {1e3 * r['compile_s']:7.0f} | "
+            + " ".join(_cell(ns[k]) for k in ("python_random", "python_sequential", "c", "c_sequential",
+                                               "numpy_interp", "numpy_interp_sequential", "scipy_cubic", "scipy_pchip"))
+            + " | " + " ".join(_cell(ratio[k], "{:.2f}x", 6) for k in ("python_random", "python_sequential", "c"))
+            + f" {ok:>4s}")
+    rig = [r for r in rows if r.get("kind") == "rig"]
+    if rig:
+        lines += ["", "rig (the shipped scene, cycle time overridden; median run):"]
+    for r in rig:
+        if not r.get("available"):
+            lines.append(f"  {r['cycle_hz'] / 1000:g} kHz: not measured: {r['reason']}")
+            continue
+        c = r["cost_us_per_cycle"]
+        split = ", ".join(f"{name} {_cell(c[key], '{:.2f}', 0).strip()} us"
+                          for key, name in (("lookup", "lookup"), ("canopen", "CANopen"),
+                                            ("drive_loop", "drive loop"), ("plant", "plant")))
+        lines.append(
+            f"  {r['scene']} at {r['cycle_hz'] / 1000:g} kHz: {r['cycles']} cycles ({r['simulated_s']:.3g} s "
+            f"simulated) in {r['wall_s']:.3g} s: real-time factor {r['real_time_factor']:.3g}x "
+            f"(loop alone {r['loop_real_time_factor']:.3g}x); "
+            f"{r['us_per_cycle']:.1f} us per cycle: {split}; setup {1e3 * r['setup_s']:.0f} ms; "
+            f"checks {'passed' if r['passed'] else 'failed: ' + ', '.join(r['failed_checks'])}")
+    notes = next((r.get("notes") for r in rig if r.get("notes")), None)
+    if notes:
+        lines += [f"  ({n})" for n in notes]
+    targets = [r for r in rows if r.get("kind") == "target"]
+    if targets:
+        lines += ["", "targets (shown, not asserted):"]
+    for t in targets:
+        mark = {True: "met   ", False: "MISSED", None: "n/a   "}[t["met"]]
+        value = "-" if t["value"] is None else f"{t['value']:.3g}"
+        lines.append(f"  [{mark}] {TARGET_TEXT.get(t['name'], t['name'])}: {value} -> {t['verdict']}")
+    return "\n".join(lines) + "\n"
+
+
+# --- command line -------------------------------------------------------------------------------
+
+
+CONTRACT_KEYS = ("law", "interp", "points", "bytes", "max_error_counts", "ns_per_lookup")
+
+
+def contract_rows(rows: list[dict]) -> list[dict]:
+    """The ``--json`` list: the table rows first, then the rig, target and note rows; every row
+    carries the contract keys (None where a row is not a table), so a consumer that reads
+    ``row["law"]`` or ``row["bytes"]`` on every row does not break."""
+    ordered = [r for r in rows if r.get("kind") == "table"] + [r for r in rows if r.get("kind") != "table"]
+    return [{**{key: None for key in CONTRACT_KEYS}, **row} for row in ordered]

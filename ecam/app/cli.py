@@ -1,0 +1,179 @@
+"""The ``ecam`` and ``hil-sim`` command lines. Bad input: one line on stderr, exit status 2, no
+traceback.
+
+    ecam laws | check CAM | plot CAM -o FILE | compile CAM | demo | bench | sim SCENE... | drive
+    hil-sim sim SCENE.toml [--json] [--timing] [--plot FILE.png] [--find-max-speed]
+    hil-sim drive [--channel ecam] [--node-id 1] [--interface virtual]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ecam.errors import EcamError, InputError
+from ecam.table import INTERPOLATIONS
+
+from . import cam_commands
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, status 2, as for every other bad input
+        raise InputError(f"{self.prog}: {message}")
+
+
+# The rig and the bench load the CAN stack and numpy-heavy modules; importing them only when their
+# command runs keeps `ecam laws` or `ecam check` quick to start.
+def _demo(args) -> int:
+    from .demo import run_demo
+
+    return run_demo(args.output)
+
+
+def _bench(args) -> int:
+    from .bench import main
+
+    return main(args)
+
+
+def _sim(args) -> int:
+    from .rig_commands import run_sim
+
+    return run_sim(args)
+
+
+def _hil_sim(args) -> int:
+    from .rig_commands import sim_command
+
+    return sim_command(args)
+
+
+def _drive(args) -> int:
+    from .rig_commands import drive_command
+
+    return drive_command(args)
+
+
+def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of the ``sim`` command."""
+    parser.add_argument("scene", nargs="+",
+                        help="scene file(s) (TOML) or directories of them, see hil_sim/scenes/")
+    parser.add_argument("--json", action="store_true",
+                        help="print the report as JSON (deterministic: same scene, same bytes)")
+    parser.add_argument("--timing", action="store_true",
+                        help="add the wall-clock timing (real-time factor) to the JSON")
+    parser.add_argument("--plot", metavar="FILE.png",
+                        help="save tracking error, coupling torque and following error plots")
+    parser.add_argument("--find-max-speed", action="store_true",
+                        help="also bisect the master speed for the highest one that passes")
+
+
+def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of the ``drive`` command."""
+    parser.add_argument("--channel", default="ecam",
+                        help="CAN channel (virtual channel name, or e.g. can0) [ecam]")
+    parser.add_argument("--node-id", type=int, default=None,
+                        help="CANopen node id 1..127 [1, or the scene's]")
+    parser.add_argument("--interface", default="virtual",
+                        help="python-can interface, e.g. virtual or socketcan [virtual]")
+    parser.add_argument("--heartbeat-ms", type=int, default=None,
+                        help="producer heartbeat time at boot [ms] (default: the EDS value)")
+    parser.add_argument("--scene", metavar="SCENE.toml", default=None,
+                        help="take mechanics, gains and node id from a scene (default: a "
+                             "small servo on a rigid load)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="ecam", description="Electronic cams: motion laws, certified cam tables, a CANopen rig.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("laws", help="the motion laws and their characteristic values")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cam_commands.cmd_laws)
+
+    p = sub.add_parser("check", help="report every jump of position, velocity, acceleration (and jerk)")
+    p.add_argument("cam", help="cam file (TOML)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cam_commands.cmd_check)
+
+    p = sub.add_parser("plot", help="motion diagram: position, velocity, acceleration, jerk")
+    p.add_argument("cam")
+    p.add_argument("-o", "--output", required=True, help="image file (.png, .svg, .pdf)")
+    p.set_defaults(func=cam_commands.cmd_plot)
+
+    p = sub.add_parser("compile", help="compile a cam into a certified fixed-point table")
+    p.add_argument("cam")
+    p.add_argument("--interp", choices=INTERPOLATIONS)
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--points", type=int, help="stored points (intervals + 1)")
+    group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts'")
+    p.add_argument("--master-counts", type=int, help="master period in counts")
+    p.add_argument("--slave-counts-per-unit", type=float, help="slave counts per slave unit")
+    p.add_argument("-o", "--output", default=".", help="output directory (default: .)")
+    p.add_argument("--format", default="c,bin", help="comma list of c, bin, csv, json (default: c,bin)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cam_commands.cmd_compile)
+
+    p = sub.add_parser("demo", help="the main job on the built-in seed cams")
+    p.add_argument("-o", "--output", default="ecam-demo", help="directory for plots and tables")
+    p.set_defaults(func=_demo)
+
+    p = sub.add_parser("bench", help="speed against error of the table kinds and the rig")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--plot", help="Pareto plot file (.png)")
+    p.add_argument("--quick", action="store_true", help="a few seconds, for smoke tests")
+    p.set_defaults(func=_bench)
+
+    p = sub.add_parser("sim", help="run a scene on the software-in-the-loop rig")
+    add_sim_arguments(p)
+    p.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="run several scenes in N parallel processes (same reports) [1]")
+    p.add_argument("--junit", metavar="FILE.xml",
+                   help="write JUnit XML: a testsuite per scene, a testcase per check")
+    p.add_argument("--html", metavar="FILE.html",
+                   help="write one self-contained HTML report (verdict, checks, plots, scene)")
+    p.set_defaults(func=_sim)
+    p = sub.add_parser("drive", help="run a virtual CiA 402 drive until interrupted")
+    add_drive_arguments(p)
+    p.set_defaults(func=_drive)
+    return parser
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+    except EcamError as exc:
+        print(f"ecam: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("ecam: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+def hil_sim_main(argv=None) -> int:
+    """Entry point of the ``hil-sim`` script: `ecam sim` for one scene and `ecam drive`."""
+    parser = argparse.ArgumentParser(prog="hil-sim", description=(
+        "Software-in-the-loop rig for ecam: a CANopen master, a virtual CiA 402 drive and the "
+        "mechanics, in lock-step over a python-can virtual bus."))
+    commands = parser.add_subparsers(dest="command", required=True)
+    sim = commands.add_parser("sim", help="run a scene and report tracking, torque and bus checks")
+    add_sim_arguments(sim)
+    sim.set_defaults(func=_hil_sim)
+    drive = commands.add_parser("drive", help="run a virtual drive for an external CANopen master until Ctrl-C")
+    add_drive_arguments(drive)
+    drive.set_defaults(func=_drive)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (EcamError, OSError) as exc:
+        print(f"hil-sim: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

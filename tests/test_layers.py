@@ -1,0 +1,127 @@
+"""The layers run one way: the core (ecam) <- the rig (hil_sim) <- the application (ecam.app).
+
+Read from the source (every import statement, those inside functions included), so an import
+hidden in a function cannot bring a circle or a wrong-way dependency back.
+"""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("ecam", "hil_sim")
+CAN_STACK = ("can", "canopen")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _sources() -> dict[str, Path]:
+    return {_module_name(p): p for package in PACKAGES for p in sorted((ROOT / package).rglob("*.py"))}
+
+
+def _imports(name: str, path: Path, known) -> set[str]:
+    """Every module ``name`` imports (absolute names; a ``from X import y`` naming a submodule
+    counts as importing that submodule)."""
+    is_package = path.name == "__init__.py"
+    package = name if is_package else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module
+            out.add(target)
+            out.update(f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in known)
+    out.discard(name)
+    return out
+
+
+@pytest.fixture(scope="module")
+def graph():
+    sources = _sources()
+    return {name: _imports(name, path, sources) for name, path in sources.items()}
+
+
+def _layer(module: str) -> str:
+    if module == "ecam.app" or module.startswith("ecam.app."):
+        return "app"
+    if module.split(".")[0] == "hil_sim":
+        return "rig"
+    return "core"
+
+
+def _within(imported: str, prefix: str) -> bool:
+    return imported == prefix or imported.startswith(prefix + ".")
+
+
+def test_the_graph_sees_function_level_imports(graph):
+    # The lazy dispatch of the CLI imports the rig commands inside a function: it must be seen.
+    assert "ecam.app.rig_commands" in graph["ecam.app.cli"]
+
+
+def test_no_import_circle_anywhere(graph):
+    internal = {m: {t for t in targets if t in graph} for m, targets in graph.items()}
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(internal[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for module in sorted(internal):
+        if module not in index:
+            visit(module)
+    assert circles == []
+
+
+@pytest.mark.parametrize("forbidden", ["hil_sim", "ecam.app", *CAN_STACK, "matplotlib"])
+def test_the_core_imports_no_rig_no_application_no_can_and_plots_only_at_its_edge(graph, forbidden):
+    offenders = {
+        module: sorted(t for t in targets if _within(t, forbidden))
+        for module, targets in graph.items()
+        if _layer(module) == "core" and not (forbidden == "matplotlib" and module == "ecam.plot")
+    }
+    assert {m: t for m, t in offenders.items() if t} == {}
+
+
+def test_the_rig_never_imports_the_application(graph):
+    offenders = {m: sorted(t for t in targets if _layer(t) == "app" and t.startswith("ecam"))
+                 for m, targets in graph.items() if _layer(m) == "rig"}
+    assert {m: t for m, t in offenders.items() if t} == {}
+
+
+def test_importing_ecam_loads_no_can_stack_no_plotting_no_rig():
+    code = ("import sys, ecam, ecam.compile, ecam.export, ecam.design, ecam.mechanics, ecam.validate; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('can', 'canopen', 'matplotlib', 'scipy', 'hil_sim') or m.startswith('ecam.app')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

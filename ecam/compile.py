@@ -9,18 +9,20 @@ profile's derivatives and measure the integer lookup against the analytic profil
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+
 import numpy as np
 
+from .certificate import Certificate, Measurement
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
-    HEADER_BYTES, INTERPOLATIONS, KINDS, MAX_MASTER_COUNTS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
-    overflow_proof,
+    HEADER_BYTES, KINDS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat, overflow_proof,
 )
+from .table_spec import MAX_POINTS, TableSpec, parse_tolerance
 
-__all__ = ["compile_table", "MAX_POINTS", "candidate_intervals", "parse_tolerance"]
+__all__ = ["compile_table", "MAX_POINTS", "TableSpec", "candidate_intervals", "parse_tolerance"]
 
-MAX_POINTS = 2**22 + 1
 DENSE_LIMIT = 2**22  # certify on every master count up to this period
 _INT32_MAX = 2**31 - 1
 _INT64_LIMIT = 2.0**63 * (1 - 1e-9)  # float bounds carry a relative margin
@@ -30,6 +32,7 @@ _ERROR_CONSTANT = {1: 1 / 8, 3: 1 / 384, 5: 1 / 46080}
 
 def compile_table(
     profile: CamProfile,
+    spec: TableSpec | None = None,
     *,
     interp: str | None = None,
     points: int | None = None,
@@ -44,6 +47,9 @@ def compile_table(
     Parameters
     ----------
     profile : CamProfile
+    spec : TableSpec, optional
+        All table settings at once; or give them one by one below (the cam file's ``[table]``
+        fills in what is not given, see :meth:`TableSpec.resolve`).
     interp : {'linear', 'cubic', 'quintic', 'auto'}
         Interpolation kind; 'auto' picks the kind and point count that meet ``tolerance`` with the
         fewest bytes. Default: the cam file's ``[table]`` setting, else 'cubic'.
@@ -64,7 +70,8 @@ def compile_table(
     Returns
     -------
     CamTable
-        With ``table.report`` the certificate (see the README).
+        With ``table.certificate`` (:class:`ecam.Certificate`) and ``table.report``, the
+        certificate as the documented dictionary (see the README).
 
     Raises
     ------
@@ -73,20 +80,16 @@ def compile_table(
     """
     if not isinstance(profile, CamProfile):
         raise InputError(f"profile {type(profile).__name__} should be a CamProfile (see ecam.load_cam)")
-    defaults = profile.table
-    if interp is None:
-        interp = defaults.get("interp", "cubic")
-        if interp == "auto" and points is not None:
-            interp = "cubic"  # the file's 'auto' needs its tolerance; explicit points mean a fixed size
-    if interp not in INTERPOLATIONS:
-        raise InputError(f"interp {interp!r} should be one of linear, cubic, quintic, auto")
-    if points is None and tolerance is None:
-        points, tolerance = defaults.get("points"), defaults.get("tolerance")
-    master_counts = _integer("master_counts", master_counts if master_counts is not None else defaults.get("master_counts", 2**16), 2, MAX_MASTER_COUNTS)
-    scale = slave_counts_per_unit if slave_counts_per_unit is not None else defaults.get("slave_counts_per_unit", 1000.0)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
-        raise InputError(f"slave_counts_per_unit {scale!r} should be a finite number > 0")
-    scale = float(scale)
+    overrides = dict(interp=interp, points=points, tolerance=tolerance, master_counts=master_counts,
+                     slave_counts_per_unit=slave_counts_per_unit)
+    if spec is None:
+        spec = TableSpec.resolve(profile.table, **overrides)
+    elif any(value is not None for value in overrides.values()):
+        given = ", ".join(k for k, v in overrides.items() if v is not None)
+        raise InputError(f"spec and {given}: give the settings either in the TableSpec or as arguments")
+    elif not isinstance(spec, TableSpec):
+        raise InputError(f"spec {type(spec).__name__} should be an ecam.TableSpec")
+    master_counts, scale = spec.master_counts, spec.slave_counts_per_unit
     low, high = profile.slave_range
     for value in (low, high):
         if abs(value * scale) > _INT32_MAX - 1:
@@ -95,15 +98,8 @@ def compile_table(
                 f"{value * scale:.6g} counts overflows int32 (limit {_INT32_MAX})"
             )
     job = _Job(profile, master_counts, scale)
-    if points is not None and tolerance is not None:
-        raise InputError("give either points or tolerance, not both")
-    if points is None and tolerance is None:
-        raise InputError("points and tolerance are both missing: give one (--points / --tolerance, "
-                         "or points / tolerance in the cam file's [table])")
-    if interp == "auto" and tolerance is None:
-        raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
-    if points is not None:
-        points = _integer("points", points, 2, MAX_POINTS)
+    if spec.points is not None:
+        points = spec.points
         intervals = points - 1
         if master_counts % intervals:
             better = min(_divisors(master_counts), key=lambda d: (abs(d - intervals), d))
@@ -111,11 +107,9 @@ def compile_table(
                 f"points {points} gives {intervals} intervals, which do not divide master_counts "
                 f"{master_counts}; use points = k + 1 for a divisor k of {master_counts}, e.g. {better + 1}"
             )
-        return job.build(KINDS[interp], intervals, certify=certify, progress=progress)
-    value, in_counts = parse_tolerance(tolerance)
-    tol_counts = value if in_counts else value * scale
-    kinds = list(KINDS.values()) if interp == "auto" else [KINDS[interp]]
-    return job.search(kinds, tol_counts, certify=certify, progress=progress)
+        return job.build(KINDS[spec.interp], intervals, certify=certify, progress=progress)
+    kinds = list(KINDS.values()) if spec.interp == "auto" else [KINDS[spec.interp]]
+    return job.search(kinds, spec.tolerance_counts(), certify=certify, progress=progress)
 
 
 def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
@@ -191,10 +185,10 @@ class _Job:
                     table = self.build(degree, intervals, certify=False)
                 except TableFormatError:
                     continue  # this size has no valid format (e.g. a step past 2^30); try the next
-                if table.report["predicted_error_counts"] <= tol_counts:
+                if table.certificate.predicted_error_counts <= tol_counts:
                     best = (nbytes, table)
                     break
-                floor_seen = min(floor_seen, table.report["predicted_error_counts"])
+                floor_seen = min(floor_seen, table.certificate.predicted_error_counts)
         if best is None:
             raise TableFormatError(
                 f"tolerance {tol_counts:.4g} counts ({tol_counts / self.S:.4g} {self.profile.slave_unit}) cannot be "
@@ -204,10 +198,10 @@ class _Job:
         _, table = best
         if certify:  # the winner was built uncertified; measure it rather than build it again
             data = self.point_data(table.format.degree, table.points - 1)
-            table.report.update(self.measure(table, data, progress))
-        table.report["tolerance_counts"] = tol_counts
-        table.report["tolerance_units"] = tol_counts / self.S
-        return table
+            certificate = table.certificate.measured(self.measure(table, data, progress))
+        else:
+            certificate = table.certificate
+        return replace(table, certificate=certificate.for_tolerance(tol_counts))
 
     # prediction ---------------------------------------------------------------------------------
     def predict_interpolation(self, degree: int, intervals: int) -> float:
@@ -263,12 +257,10 @@ class _Job:
             raise TableFormatError(f"table position {np.abs(data[0]).max():.0f} counts overflows int32")
         fmt, positions, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, data)
         table = CamTable(fmt, positions, slopes, curvatures)
-        report = self.certificate(table, data, certify, progress)
-        object.__setattr__(table, "report", report)
-        return table
+        return replace(table, certificate=self.certificate(table, data, certify, progress))
 
     # certificate --------------------------------------------------------------------------------
-    def certificate(self, table: CamTable, data, certify: bool, progress) -> dict:
+    def certificate(self, table: CamTable, data, certify: bool, progress) -> Certificate:
         f = table.format
         degree, h = f.degree, f.step_counts
         intervals = f.points - 1
@@ -282,36 +274,18 @@ class _Job:
             round(where * self.unit, 9) for where, order, _ in self.jumps()
             if order <= degree and abs(where / h - round(where / h)) > 1e-6
         })
-        report = {
-            "interp": f.interp,
-            "degree": degree,
-            "points": f.points,
-            "intervals": intervals,
-            "step_counts": h,
-            "master_counts": f.master_counts,
-            "slave_counts_per_unit": self.S,
-            "periodic": f.periodic,
-            "bytes": table.nbytes,
-            "crc32": table.crc32,
-            "format": {
-                "position_bits": f.position_bits, "step_shift": f.step_shift, "tau_bits": f.tau_bits,
-                "work_bits": f.work_bits,
-                "slope_bits": f.slope_bits, "curvature_bits": f.curvature_bits,
-                "slope_preshift": f.slope_preshift, "tau_recip": f.tau_recip,
-            },
-            "predicted_interpolation_counts": interp_bound,
-            "quantization_counts": quant,
-            "predicted_error_counts": predicted,
-            "predicted_error_units": predicted / self.S,
-            "joints_off_points": off_grid,
-            "slave_unit": self.profile.slave_unit,
-            "master_unit": self.profile.master_unit,
-        }
-        if certify:
-            report.update(self.measure(table, data, progress))
-        return report
+        certificate = Certificate(
+            slave_counts_per_unit=self.S,
+            slave_unit=self.profile.slave_unit,
+            master_unit=self.profile.master_unit,
+            predicted_interpolation_counts=interp_bound,
+            quantization_counts=quant,
+            predicted_error_counts=predicted,
+            joints_off_points=tuple(off_grid),
+        )
+        return certificate.measured(self.measure(table, data, progress)) if certify else certificate
 
-    def measure(self, table: CamTable, data, progress) -> dict:
+    def measure(self, table: CamTable, data, progress) -> Measurement:
         """Evaluate the integer lookup against the analytic profile: every master count when the
         period is at most DENSE_LIMIT, otherwise an even sample plus every joint and point."""
         M, h = self.M, table.format.step_counts
@@ -342,16 +316,15 @@ class _Job:
             worst["float"] = max(worst["float"], float(np.abs(_float_interpolant(table, data, counts) - exact).max()))
             if progress:
                 progress(min(start + chunk, total), total)
-        return {
-            "evaluated": how,
-            "evaluated_counts": int(total),
-            "max_error_counts": worst["err"],
-            "max_error_units": worst["err"] / self.S,
-            "max_error_at_master_counts": worst["at"],
-            "max_error_at_master": worst["at"] * self.unit,
-            "interpolation_error_counts": worst["float"],
-            "max_slope_error_counts_per_count": worst["slope"],
-        }
+        return Measurement(
+            evaluated=how,
+            evaluated_counts=int(total),
+            max_error_counts=worst["err"],
+            max_error_at_master_counts=worst["at"],
+            max_error_at_master=worst["at"] * self.unit,
+            interpolation_error_counts=worst["float"],
+            max_slope_error_counts_per_count=worst["slope"],
+        )
 
 
 # fixed-point format --------------------------------------------------------------------------
@@ -495,31 +468,6 @@ def _float_interpolant(table: CamTable, data, counts: np.ndarray) -> np.ndarray:
 
 
 # input helpers ----------------------------------------------------------------------------------
-
-
-def _integer(name, value, low, high):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} {value!r} should be an integer")
-    if not low <= value <= high:
-        raise InputError(f"{name} {value} should be in {low}..{high}")
-    return int(value)
-
-
-def parse_tolerance(tolerance) -> tuple[float, bool]:
-    """A tolerance as (value, in_counts): a number in slave units, or a string such as
-    ``"2 counts"`` (also ``"2 count"``, ``"2 lsb"``) or ``"0.001"`` (slave units)."""
-    value, in_counts = tolerance, False
-    if isinstance(tolerance, str):
-        text = tolerance.strip().lower()
-        number = text.removesuffix("counts").removesuffix("count").removesuffix("lsb").strip()
-        in_counts = number != text
-        try:
-            value = float(number)
-        except ValueError:
-            value = None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
-        raise InputError(f"tolerance {tolerance!r} should be a number > 0 in slave units or a string like '2 counts'")
-    return float(value), in_counts
 
 
 def _divisors(n: int) -> list[int]:

@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 import struct
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from .certificate import Certificate
 from .errors import InputError, TableFormatError
 
 __all__ = ["TableFormat", "CamTable", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "MAGIC"]
@@ -124,15 +125,17 @@ class CamTable:
         ``h * dy/dm`` in Q``slope_bits`` (cubic and quintic).
     curvatures : numpy.ndarray of int32 or None
         ``h**2 * d2y/dm2 / 2`` in Q``curvature_bits`` (quintic).
+    certificate : Certificate or None
+        What the compiler proved and measured (None for a table loaded from bytes).
     report : dict
-        The certificate (empty for a table loaded from bytes).
+        The certificate as the documented dictionary (empty for a table loaded from bytes).
     """
 
     format: TableFormat
     positions: np.ndarray
     slopes: np.ndarray | None = None
     curvatures: np.ndarray | None = None
-    report: dict = field(default_factory=dict)
+    certificate: Certificate | None = None
 
     def __post_init__(self):
         self.format.validate()
@@ -150,6 +153,10 @@ class CamTable:
         object.__setattr__(self, "_coefficients", None)
 
     # convenience -----------------------------------------------------------------------------
+    @property
+    def report(self) -> dict:
+        return {} if self.certificate is None else self.certificate.report(self)
+
     @property
     def interp(self) -> str:
         return self.format.interp

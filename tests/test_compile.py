@@ -208,14 +208,17 @@ def test_table_of_2_20_points():
 
 
 BAD = [
-    (dict(points=1), "points 1 should be in 2.."),
+    (dict(points=1), "points: 1 should be an integer in 2..4194305"),
     (dict(points=1000), "points 1000 gives 999 intervals, which do not divide master_counts 65536"),
     (dict(tolerance=1e-9), "cannot be met within"),
     (dict(points=65, slave_counts_per_unit=1e12), "overflows int32"),
-    (dict(points=65, master_counts=2**31 + 1), "master_counts 2147483649 should be in 2..2147483648"),
-    (dict(points=65, slave_counts_per_unit=-1.0), "slave_counts_per_unit -1.0 should be"),
-    (dict(points=65, interp="spline"), "interp 'spline' should be one of"),
-    (dict(tolerance="3 furlongs"), "tolerance '3 furlongs' should be"),
+    (dict(points=65, master_counts=2**31 + 1), "master_counts: 2147483649 should be an integer in 2..2147483648"),
+    (dict(points=65, slave_counts_per_unit=-1.0), "slave_counts_per_unit: -1 should be >= 1e-06"),
+    (dict(points=65, interp="spline"), "interp: 'spline' should be one of linear, cubic, quintic, auto"),
+    (dict(tolerance="3 furlongs"), "tolerance: '3 furlongs' should be a number > 0"),
+    (dict(points=65, tolerance=0.01), "give either points or tolerance, not both"),
+    (dict(points=65, master_counts=True), "master_counts: True should be an integer"),
+    (dict(points=65, slave_counts_per_unit=float("nan")), "slave_counts_per_unit: nan should be finite"),
 ]
 
 
@@ -246,7 +249,7 @@ def test_compile_cli_json_contract(tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--points", "1"], "points 1 should be"),
+    (["--points", "1"], "points: 1 should be an integer in 2..4194305"),
     (["--points", "1000"], "do not divide master_counts"),
     (["--tolerance", "1e-12"], "cannot be met"),
     (["--points", "65", "--slave-counts-per-unit", "1e12"], "overflows int32"),

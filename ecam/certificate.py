@@ -1,0 +1,136 @@
+"""The error certificate of a compiled table: what the compiler proved and what it measured.
+
+A :class:`Certificate` is built with its table and never changes. It holds only what the table
+cannot tell by itself (the bound, the measurement, the units); :meth:`Certificate.report` joins it
+with the table's own facts (kind, points, step, CRC) into the dictionary that ``ecam compile
+--json``, the JSON export and the README document. Those keys are a contract: they do not change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """The integer lookup against the analytic profile, in slave counts.
+
+    Attributes
+    ----------
+    evaluated : str
+        Which master counts were evaluated ("every master count", or a sample and why).
+    evaluated_counts : int
+        How many.
+    max_error_counts : float
+        Largest |lookup - profile| found.
+    max_error_at_master_counts : int
+        Where (master counts), and ``max_error_at_master`` the same in master units.
+    max_error_at_master : float
+    interpolation_error_counts : float
+        Largest error of the same interpolant in float64, before any rounding.
+    max_slope_error_counts_per_count : float
+        Largest error of the slope the lookup returns, in slave counts per master count.
+    """
+
+    evaluated: str
+    evaluated_counts: int
+    max_error_counts: float
+    max_error_at_master_counts: int
+    max_error_at_master: float
+    interpolation_error_counts: float
+    max_slope_error_counts_per_count: float
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """What a table is guaranteed to do: a predicted bound, and (when certified) a measurement.
+
+    Attributes
+    ----------
+    slave_counts_per_unit : float
+        The scale the table was compiled at.
+    slave_unit, master_unit : str
+        The profile's units, for messages.
+    predicted_interpolation_counts : float
+        Bound of the interpolation error before quantization.
+    quantization_counts : float
+        Bound of the rounding of stored values and of the arithmetic.
+    predicted_error_counts : float
+        The certified bound: both of the above plus a float64 margin. ``measured <= predicted``.
+    joints_off_points : tuple of float
+        Master positions of derivative jumps that do not fall on a table point.
+    measurement : Measurement or None
+        None for a table compiled with ``certify=False``.
+    tolerance_counts : float or None
+        The tolerance the table was chosen for, when it was compiled to one.
+    """
+
+    slave_counts_per_unit: float
+    slave_unit: str
+    master_unit: str
+    predicted_interpolation_counts: float
+    quantization_counts: float
+    predicted_error_counts: float
+    joints_off_points: tuple[float, ...] = ()
+    measurement: Measurement | None = None
+    tolerance_counts: float | None = None
+
+    @property
+    def predicted_error_units(self) -> float:
+        return self.predicted_error_counts / self.slave_counts_per_unit
+
+    @property
+    def max_error_counts(self) -> float | None:
+        """The measured error, or None when the table was not certified."""
+        return None if self.measurement is None else self.measurement.max_error_counts
+
+    def measured(self, measurement: Measurement) -> "Certificate":
+        return replace(self, measurement=measurement)
+
+    def for_tolerance(self, tolerance_counts: float) -> "Certificate":
+        return replace(self, tolerance_counts=float(tolerance_counts))
+
+    def report(self, table) -> dict:
+        """The certificate as the documented dictionary (``table.report``), joined with ``table``'s
+        own facts."""
+        f = table.format
+        out = {
+            "interp": f.interp,
+            "degree": f.degree,
+            "points": f.points,
+            "intervals": f.points - 1,
+            "step_counts": f.step_counts,
+            "master_counts": f.master_counts,
+            "slave_counts_per_unit": self.slave_counts_per_unit,
+            "periodic": f.periodic,
+            "bytes": table.nbytes,
+            "crc32": table.crc32,
+            "format": {
+                "position_bits": f.position_bits, "step_shift": f.step_shift, "tau_bits": f.tau_bits,
+                "work_bits": f.work_bits, "slope_bits": f.slope_bits, "curvature_bits": f.curvature_bits,
+                "slope_preshift": f.slope_preshift, "tau_recip": f.tau_recip,
+            },
+            "predicted_interpolation_counts": self.predicted_interpolation_counts,
+            "quantization_counts": self.quantization_counts,
+            "predicted_error_counts": self.predicted_error_counts,
+            "predicted_error_units": self.predicted_error_units,
+            "joints_off_points": list(self.joints_off_points),
+            "slave_unit": self.slave_unit,
+            "master_unit": self.master_unit,
+        }
+        m = self.measurement
+        if m is not None:
+            out.update({
+                "evaluated": m.evaluated,
+                "evaluated_counts": m.evaluated_counts,
+                "max_error_counts": m.max_error_counts,
+                "max_error_units": m.max_error_counts / self.slave_counts_per_unit,
+                "max_error_at_master_counts": m.max_error_at_master_counts,
+                "max_error_at_master": m.max_error_at_master,
+                "interpolation_error_counts": m.interpolation_error_counts,
+                "max_slope_error_counts_per_count": m.max_slope_error_counts_per_count,
+            })
+        if self.tolerance_counts is not None:
+            out["tolerance_counts"] = self.tolerance_counts
+            out["tolerance_units"] = self.tolerance_counts / self.slave_counts_per_unit
+        return out

@@ -1,0 +1,124 @@
+"""What table to compile: a :class:`TableSpec`, validated once, whoever wrote it (the Python API,
+a cam file's ``[table]``, a scene's ``[cam]``, the command line)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import validate
+from .errors import InputError
+from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
+
+__all__ = ["TableSpec", "parse_tolerance", "MAX_POINTS", "MIN_COUNTS_PER_UNIT", "MAX_COUNTS_PER_UNIT"]
+
+MAX_POINTS = 2**22 + 1
+# Counts per slave unit: below a micro-count per unit no table position is meaningful; above 1e12
+# (a picometre per count on a metre axis) no encoder exists and int32 positions could not hold a
+# millimetre of stroke.
+MIN_COUNTS_PER_UNIT = 1e-6
+MAX_COUNTS_PER_UNIT = 1e12
+DEFAULT_INTERP = "cubic"
+DEFAULT_MASTER_COUNTS = 2**16
+DEFAULT_COUNTS_PER_UNIT = 1000.0
+
+
+def parse_tolerance(tolerance, field: str = "tolerance") -> tuple[float, bool]:
+    """A tolerance as (value, in_counts): a number in slave units, or a string such as
+    ``"2 counts"`` (also ``"2 count"``, ``"2 lsb"``) or ``"0.001"`` (slave units)."""
+    value, in_counts = tolerance, False
+    if isinstance(tolerance, str):
+        text = tolerance.strip().lower()
+        number = text.removesuffix("counts").removesuffix("count").removesuffix("lsb").strip()
+        in_counts = number != text
+        try:
+            value = float(number)
+        except ValueError:
+            value = None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+        raise validate.fail(field, tolerance, "a number > 0 in slave units or a string like '2 counts'")
+    return float(value), in_counts
+
+
+def _plain_int(value):
+    return int(value) if isinstance(value, np.integer) else value
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """The settings of one table.
+
+    Attributes
+    ----------
+    interp : {'linear', 'cubic', 'quintic', 'auto'}
+        Interpolation kind; ``auto`` picks the kind and size that meet ``tolerance`` in the fewest
+        bytes.
+    points : int or None
+        Stored points (intervals + 1), 2..MAX_POINTS; ``points - 1`` must divide ``master_counts``.
+    tolerance : float, str or None
+        Largest allowed error: slave units, or a string such as ``"2 counts"``. Exactly one of
+        ``points`` and ``tolerance`` is given.
+    master_counts : int
+        Master period in encoder counts, 2..2^31.
+    slave_counts_per_unit : float
+        Slave counts per slave unit, 1e-6..1e12.
+    """
+
+    interp: str = DEFAULT_INTERP
+    points: int | None = None
+    tolerance: float | str | None = None
+    master_counts: int = DEFAULT_MASTER_COUNTS
+    slave_counts_per_unit: float = DEFAULT_COUNTS_PER_UNIT
+
+    def __post_init__(self):
+        validate.choice("interp", self.interp, INTERPOLATIONS)
+        object.__setattr__(self, "master_counts", validate.integer(
+            "master_counts", _plain_int(self.master_counts), minimum=2, maximum=MAX_MASTER_COUNTS))
+        object.__setattr__(self, "slave_counts_per_unit", validate.number(
+            "slave_counts_per_unit", self.slave_counts_per_unit, minimum=MIN_COUNTS_PER_UNIT,
+            maximum=MAX_COUNTS_PER_UNIT))
+        if self.points is not None and self.tolerance is not None:
+            raise InputError("give either points or tolerance, not both")
+        if self.points is None and self.tolerance is None:
+            raise InputError("points and tolerance are both missing: give one (--points / --tolerance, "
+                             "or points / tolerance in the cam file's [table])")
+        if self.points is not None:
+            object.__setattr__(self, "points", validate.integer(
+                "points", _plain_int(self.points), minimum=2, maximum=MAX_POINTS))
+        else:
+            parse_tolerance(self.tolerance)
+        if self.interp == "auto" and self.tolerance is None:
+            raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
+
+    def tolerance_counts(self) -> float | None:
+        """The tolerance in slave counts (None for a table of fixed size)."""
+        if self.tolerance is None:
+            return None
+        value, in_counts = parse_tolerance(self.tolerance)
+        return value if in_counts else value * self.slave_counts_per_unit
+
+    @classmethod
+    def resolve(cls, defaults: Mapping, *, interp=None, points=None, tolerance=None, master_counts=None,
+                slave_counts_per_unit=None) -> "TableSpec":
+        """The spec from explicit settings over ``defaults`` (a cam file's ``[table]``).
+
+        Points and tolerance travel together: giving either one replaces both of the defaults'.
+        A default ``interp = "auto"`` with explicit ``points`` becomes ``cubic``, since ``auto``
+        chooses the size that explicit points fix.
+        """
+        if interp is None:
+            interp = defaults.get("interp", DEFAULT_INTERP)
+            if interp == "auto" and points is not None:
+                interp = DEFAULT_INTERP
+        if points is None and tolerance is None:
+            points, tolerance = defaults.get("points"), defaults.get("tolerance")
+        return cls(
+            interp=interp, points=points, tolerance=tolerance,
+            master_counts=defaults.get("master_counts", DEFAULT_MASTER_COUNTS) if master_counts is None
+            else master_counts,
+            slave_counts_per_unit=defaults.get("slave_counts_per_unit", DEFAULT_COUNTS_PER_UNIT)
+            if slave_counts_per_unit is None else slave_counts_per_unit,
+        )

@@ -445,7 +445,7 @@ def _quantization_bound(table: CamTable) -> float:
         bound += 0.5 * 2.0**-f.curvature_bits * _basis_peak(f.degree, 2)
     bound += f.degree * 2.0**-f.work_bits
     if f.step_shift < 0:
-        rows = table._coefficient_rows()
+        rows = table.coefficient_rows()
         # |dp/dtau| <= sum k |c_k|, in counts per unit tau
         dpdtau = sum(k * np.abs(rows[k].astype(np.float64)) for k in range(1, f.degree + 1)).max() / 2.0**f.work_bits
         dtau = 2.0**-f.tau_bits * (1 + f.step_counts / 2.0**32)

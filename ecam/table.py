@@ -182,34 +182,17 @@ class CamTable:
         return HEADER_BYTES + self.format.payload_bytes
 
     # lookup ------------------------------------------------------------------------------------
-    def _coefficient_rows(self) -> tuple[np.ndarray, ...]:
+    def coefficient_rows(self) -> tuple[np.ndarray, ...]:
         """Per-interval integers (Y0 * 2^(W-Qy), c1, ..., cn) of FORMAT.md step 4, one contiguous
         array each, computed once: the same integers the C runtime derives on the fly from the
         point data (contiguous columns make the vectorized gathers several times faster)."""
         if self._coefficients is not None:
             return self._coefficients
         f = self.format
-        up = f.work_bits - f.position_bits
-        y = self.positions.astype(np.int64)
-        d = (y[1:] - y[:-1]) << up
-        cols = [y[:-1] << up]
-        if f.degree == 1:
-            cols.append(d)
-        else:
-            s = self.slopes.astype(np.int64) << (f.work_bits - f.slope_bits)
-            a0, a1 = s[:-1], s[1:]
-            if f.degree == 3:
-                cols += [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
-            else:
-                c = self.curvatures.astype(np.int64) << (f.work_bits - f.curvature_bits)
-                b0, b1 = c[:-1], c[1:]
-                cols += [
-                    a0,
-                    b0,
-                    10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1,
-                    -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
-                    6 * d - 3 * a0 - 3 * a1 - b0 + b1,
-                ]
+        y = self.positions.astype(np.int64) << (f.work_bits - f.position_bits)
+        s = None if self.slopes is None else self.slopes.astype(np.int64) << (f.work_bits - f.slope_bits)
+        c = None if self.curvatures is None else self.curvatures.astype(np.int64) << (f.work_bits - f.curvature_bits)
+        cols = [y[:-1], *hermite_coefficients(f.degree, y, s, c)]
         cols = tuple(np.ascontiguousarray(c) for c in cols)
         for c in cols:
             c.setflags(write=False)
@@ -255,7 +238,7 @@ class CamTable:
             return self._lookup_one(int(master_counts), with_slope)
         index, tau, outside = self._locate(master_counts)
         f = self.format
-        cols = self._coefficient_rows()
+        cols = self.coefficient_rows()
         n, shift, w = f.degree, f.tau_bits, f.work_bits
         # Horner, in place: r = c_k + asr(r * tau, F); every shift floors (numpy >> on int64)
         r = np.take(cols[n], index)
@@ -323,7 +306,7 @@ class CamTable:
     def _scalar_rows(self) -> list:
         rows = getattr(self, "_rows_list", None)
         if rows is None:
-            rows = list(zip(*(c.tolist() for c in self._coefficient_rows())))
+            rows = list(zip(*(c.tolist() for c in self.coefficient_rows())))
             object.__setattr__(self, "_rows_list", rows)
         return rows
 
@@ -399,21 +382,31 @@ class CamTable:
         return cls(fmt, positions, slopes, curvatures)
 
 
+def hermite_coefficients(degree, y, s=None, c=None) -> list:
+    """The polynomial coefficients c_1..c_n of every interval (FORMAT.md step 4), from the point
+    data scaled to the work format: positions ``y``, ``h*slopes`` ``s``, ``h^2*curvatures/2`` ``c``.
+
+    The same integer combinations serve the exact int64 lookup and the float64 images the
+    overflow proof bounds, so the two cannot drift apart.
+    """
+    d = y[1:] - y[:-1]
+    if degree == 1:
+        return [d]
+    a0, a1 = s[:-1], s[1:]
+    if degree == 3:
+        return [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
+    b0, b1 = c[:-1], c[1:]
+    return [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
+            6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+
+
 def _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits):
     """Float images (exact below 2^53, within a relative 1e-16 above) of Y0 * 2^(W-Qy) and the
     integer c_k."""
     y = positions.astype(np.float64) * 2.0 ** (work_bits - position_bits)
-    d = y[1:] - y[:-1]
-    if degree == 1:
-        return y, [d]
-    s = slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
-    a0, a1 = s[:-1], s[1:]
-    if degree == 3:
-        return y, [a0, 3 * d - 2 * a0 - a1, a0 + a1 - 2 * d]
-    c = curvatures.astype(np.float64) * 2.0 ** (work_bits - curvature_bits)
-    b0, b1 = c[:-1], c[1:]
-    return y, [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
-               6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+    s = None if slopes is None else slopes.astype(np.float64) * 2.0 ** (work_bits - slope_bits)
+    c = None if curvatures is None else curvatures.astype(np.float64) * 2.0 ** (work_bits - curvature_bits)
+    return y, hermite_coefficients(degree, y, s, c)
 
 
 def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits, tau_bits,

@@ -72,12 +72,14 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the ``drive`` command."""
-    parser.add_argument("--channel", default="ecam",
-                        help="CAN channel (virtual channel name, or e.g. can0) [ecam]")
+    parser.add_argument("--channel", default=None,
+                        help="CAN channel: a virtual channel name [ecam], a multicast group "
+                             "[239.74.163.2] or a SocketCAN interface [vcan0]")
     parser.add_argument("--node-id", type=int, default=None,
                         help="CANopen node id 1..127 [1, or the scene's]")
-    parser.add_argument("--interface", default="virtual",
-                        help="python-can interface, e.g. virtual or socketcan [virtual]")
+    parser.add_argument("--interface", default="virtual", choices=("virtual", "udp_multicast", "ecam_udp", "socketcan"),
+                        help="virtual: masters in this process only; udp_multicast (= ecam_udp, "
+                             "without echoes) or socketcan: masters in other processes [virtual]")
     parser.add_argument("--heartbeat-ms", type=int, default=None,
                         help="producer heartbeat time at boot [ms] (default: the EDS value)")
     parser.add_argument("--scene", metavar="SCENE.toml", default=None,

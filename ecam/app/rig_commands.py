@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import threading
 from pathlib import Path
@@ -17,6 +18,7 @@ from ecam.errors import EcamError, InputError
 from hil_sim.drive import VirtualDrive
 from hil_sim.rig import drive_for_scene, find_max_speed, run_scene
 from hil_sim.scene import load_scene
+from hil_sim.udp_bus import DEFAULT_GROUP, EchoFreeUdpMulticastBus
 
 from .html_report import html_report
 from .junit import junit_xml
@@ -87,27 +89,47 @@ def sim_many(args) -> int:
     return exit_status(results)
 
 
+# Transports and how the drive opens them. The in-process `virtual` bus reaches only masters in this
+# process; the others reach other processes. On udp_multicast every sender hears its own frames
+# back, so the drive opens it as the echo-free variant (same wire format and groups).
+_DEFAULT_CHANNELS = {"virtual": "ecam", "udp_multicast": DEFAULT_GROUP, "ecam_udp": DEFAULT_GROUP,
+                     "socketcan": "vcan0"}
+
+
+def open_drive_bus(interface: str, channel: str | None):
+    """(bus, channel): None for the in-process virtual bus, which the drive opens itself."""
+    channel = channel or _DEFAULT_CHANNELS[interface]
+    if interface == "virtual":
+        return None, channel
+    try:
+        if interface in ("udp_multicast", "ecam_udp"):
+            return EchoFreeUdpMulticastBus(channel=channel), channel
+        return can.Bus(interface=interface, channel=channel), channel
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: {exc}") from None
+
+
 def drive_command(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
-    """Run a virtual drive until Ctrl-C (or until ``stop`` is set); return 0."""
-    bus = None
-    if args.interface != "virtual":
-        try:
-            bus = can.Bus(interface=args.interface, channel=args.channel)
-        except (can.CanError, OSError, ValueError, ImportError) as exc:
-            raise EcamError(f"interface {args.interface!r} channel {args.channel!r} cannot be "
-                            f"opened: {exc}") from None
-    if args.scene is not None:
-        drive = drive_for_scene(args.scene, channel=args.channel, bus=bus, node_id=args.node_id,
-                                heartbeat_ms=args.heartbeat_ms)
-    else:
-        drive = VirtualDrive(channel=args.channel, node_id=1 if args.node_id is None else args.node_id, bus=bus,
-                             heartbeat_ms=args.heartbeat_ms)
+    """Run a virtual drive until Ctrl-C or SIGTERM (or until ``stop`` is set); return 0."""
+    bus, channel = open_drive_bus(args.interface, args.channel)
+    try:
+        if args.scene is not None:
+            drive = drive_for_scene(args.scene, channel=channel, bus=bus, node_id=args.node_id,
+                                    heartbeat_ms=args.heartbeat_ms)
+        else:
+            drive = VirtualDrive(channel=channel, node_id=1 if args.node_id is None else args.node_id, bus=bus,
+                                 heartbeat_ms=args.heartbeat_ms)
+    except BaseException:
+        if bus is not None:
+            bus.shutdown()
+        raise
     stop = stop or threading.Event()
+    restore = _stop_on_sigterm(stop)
     print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "
-          f"{args.channel!r}; Ctrl-C stops it", flush=True)
+          f"{channel!r}; Ctrl-C or SIGTERM stops it", flush=True)
     drive.start()
     try:
-        while not stop.wait(0.5):
+        while not stop.wait(0.1):
             pass
     except KeyboardInterrupt:
         pass
@@ -115,4 +137,15 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
         drive.stop()
         if bus is not None:
             bus.shutdown()
+        restore()
+    print("virtual drive stopped", flush=True)
     return 0
+
+
+def _stop_on_sigterm(stop: threading.Event):
+    """Let SIGTERM (a service manager, `kill`) stop the drive as Ctrl-C does: the bus is shut down
+    and the process exits 0. Returns the function that puts the previous handler back."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None  # signal handlers can be set from the main thread only
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
+    return lambda: signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,61 @@
+"""A CAN bus between processes on one machine that does not hand a sender its own frames back.
+
+python-can's ``udp_multicast`` interface joins processes over IP multicast, but every frame a bus
+sends comes back to that same bus (multicast loopback), although python-can's API promises that a
+bus does not receive its own messages unless ``receive_own_messages`` is set. A CANopen master
+trips over this: python ``canopen`` takes two receptions of its own RPDO for a periodic PDO
+(``PdoMap.on_message`` sets ``period``), and ``BaseNode402`` then stops transmitting the
+controlword, so the state machine stalls in READY TO SWITCH ON.
+
+:class:`EchoFreeUdpMulticastBus` speaks the same wire format (msgpack frames on the same groups
+and port, so plain ``udp_multicast`` nodes still hear it) and drops exactly its own frames: each
+frame it sends carries the bus's own tag in the ``channel`` field of the packed message, and a
+received frame with that tag is the echo. It is registered with python-can as the interface
+``ecam_udp``, so any python-can program, an unmodified canopen master included, selects it with
+``interface="ecam_udp"``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+from copy import copy
+
+import can
+from can.interfaces.udp_multicast import UdpMulticastBus
+
+__all__ = ["EchoFreeUdpMulticastBus", "DEFAULT_GROUP"]
+
+# IPv4: routable on a loopback-only network namespace with one route (224.0.0.0/4 dev lo), where
+# python-can's IPv6 default group needs more set-up.
+DEFAULT_GROUP = UdpMulticastBus.DEFAULT_GROUP_IPv4
+_BUS_NUMBERS = itertools.count()
+
+
+class EchoFreeUdpMulticastBus(UdpMulticastBus):
+    """``udp_multicast`` without the sender's own frames (see the module docstring).
+
+    Parameters are those of :class:`can.interfaces.udp_multicast.UdpMulticastBus`; ``channel``
+    defaults to the IPv4 group :data:`DEFAULT_GROUP`.
+    """
+
+    def __init__(self, channel: str = DEFAULT_GROUP, *args, **kwargs) -> None:
+        super().__init__(channel, *args, **kwargs)
+        self._tag = f"ecam-udp:{os.getpid()}:{next(_BUS_NUMBERS)}:{id(self):x}"
+        self.channel_info = f"{channel} (echo-free)"
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        tagged = copy(msg)
+        tagged.channel = self._tag
+        super().send(tagged, timeout)
+
+    def _recv_internal(self, timeout: float | None):
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            remaining = None if deadline is None else max(0.0, deadline - time.monotonic())
+            msg, filtered = super()._recv_internal(remaining)
+            if msg is None or msg.channel != self._tag:
+                return msg, filtered
+            if deadline is not None and remaining == 0.0:
+                return None, False

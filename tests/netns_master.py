@@ -1,0 +1,114 @@
+"""An unmodified python-canopen CiA 402 master in one process, the virtual drive in another.
+
+Run by tests/test_drive_network.py inside a private network namespace that has only loopback, so
+no frame leaves the machine. Prints one ``step: ...`` line per stage reached and ``ok`` at the
+end; exits non-zero at the first stage that fails.
+
+    python3 tests/netns_master.py NODE_ID
+"""
+
+import signal
+import subprocess
+import sys
+import time
+
+import canopen
+from canopen.profiles.p402 import BaseNode402
+
+from hil_sim.drive import EDS_PATH
+
+CSP = "CYCLIC SYNCHRONOUS POSITION"
+SYNC_PERIOD_S = 0.002
+FOLLOWING_ERROR_EMCY = 0x8611  # CiA 402: following error
+
+
+def step(text):
+    print(f"step: {text}", flush=True)
+
+
+def main(node_id: int) -> int:
+    network = canopen.Network()
+    network.connect(interface="ecam_udp")  # the master's own bus: no frame filters
+    drive = subprocess.Popen([sys.executable, "-m", "ecam.app", "drive", "--interface", "udp_multicast",
+                              "--node-id", str(node_id)], stdout=subprocess.PIPE, text=True)
+    try:
+        node = BaseNode402(node_id, str(EDS_PATH))
+        network.add_node(node)
+        node.nmt.wait_for_bootup(15.0)
+        step("boot-up")
+        node.nmt.wait_for_heartbeat(5.0)
+        step(f"heartbeat {node.nmt.state}")
+        assert node.sdo[0x1000].raw == 0x00020192
+        step("sdo")
+        node.setup_402_state_machine()  # reads the PDO configuration by SDO
+        node.rpdo.read()
+        step("pdo configuration read")
+        node.nmt.state = "OPERATIONAL"
+        network.sync.start(SYNC_PERIOD_S)
+        node.op_mode = CSP
+        step(f"mode {node.op_mode}")
+        position = node.sdo[0x6064].raw
+        node.rpdo[0x607A].raw = position
+        node.state = "OPERATION ENABLED"
+        step(f"state {node.state}")
+
+        target_map = _map_with(node.rpdo, 0x607A)
+        for k in range(200):
+            target_map[0x607A].raw = position + 20 * k
+            target_map.transmit()
+            time.sleep(SYNC_PERIOD_S)
+        time.sleep(10 * SYNC_PERIOD_S)
+        actual = node.tpdo_values.get(0x6064)
+        step(f"streamed 200 targets, position by TPDO {actual}")
+        assert actual is not None and abs(actual - (position + 20 * 199)) < 1000, actual
+
+        node.emcy.reset()
+        target_map[0x607A].raw = position + 2**29  # far beyond the following-error window
+        target_map.transmit()
+        emcy = node.emcy.wait(FOLLOWING_ERROR_EMCY, timeout=5.0)
+        assert emcy is not None, "no following-error EMCY"
+        statusword = node.sdo[0x6041].raw
+        assert statusword & 0x08, f"statusword 0x{statusword:04X} shows no fault"
+        step(f"emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
+        position = node.sdo[0x6064].raw
+        target_map[0x607A].raw = position
+        target_map.transmit()
+        node.reset_from_fault()
+        node.state = "OPERATION ENABLED"
+        for k in range(50):
+            target_map[0x607A].raw = position + 20 * k
+            target_map.transmit()
+            time.sleep(SYNC_PERIOD_S)
+        time.sleep(10 * SYNC_PERIOD_S)
+        statusword = node.sdo[0x6041].raw
+        assert statusword & 0x6F == 0x27, f"statusword 0x{statusword:04X} after re-enable"
+        step(f"fault reset and re-enabled, statusword 0x{statusword:04X}, following again")
+
+        network.sync.stop()
+        node.nmt.state = "STOPPED"
+        time.sleep(0.2)
+        step(f"nmt {node.nmt.state}")
+    finally:
+        network.disconnect()
+        drive.send_signal(signal.SIGTERM)
+        try:
+            out, _ = drive.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            drive.kill()
+            out, _ = drive.communicate()
+            print("drive did not stop on SIGTERM", flush=True)
+            return 1
+    step(f"drive exit {drive.returncode}: {out.strip().splitlines()[-1] if out.strip() else ''}")
+    print("ok" if drive.returncode == 0 else "drive failed", flush=True)
+    return drive.returncode
+
+
+def _map_with(maps, index):
+    for pdo_map in maps.values():
+        if any(var.index == index for var in pdo_map.map):
+            return pdo_map
+    raise LookupError(f"no RPDO maps 0x{index:04X}")
+
+
+if __name__ == "__main__":
+    sys.exit(main(int(sys.argv[1]) if len(sys.argv) > 1 else 3))

@@ -1,0 +1,68 @@
+"""A virtual CiA 402 servo drive: a CANopen slave on a python-can bus, driving a simulated axis.
+
+The drive is a canopen :class:`~canopen.LocalNode` (object dictionary from ``drive.eds``, SDO
+server with segmented transfer) plus what canopen 2.4 leaves to the application, one module per
+protocol service:
+
+* :mod:`~hil_sim.drive.objects`: the EDS, its loader, and a name for every object the drive uses;
+* :mod:`~hil_sim.drive.sdo`: the SDO server (the indicated size of a segmented download is
+  enforced, an abort drops the partial buffer), the node, the stored objects, the abort codes;
+* :mod:`~hil_sim.drive.nmt`: the **NMT** slave written here (boot-up, pre-operational,
+  operational, stopped, resets) with a heartbeat produced on the drive's own clock (canopen's
+  uses a timer thread);
+* :mod:`~hil_sim.drive.pdo`: **PDOs** packed and unpacked here from the mapping objects
+  (0x1400-0x1BFF), and received RPDO values written into the drive's object dictionary (canopen
+  does not);
+* :mod:`~hil_sim.drive.emcy`: the EMCY producer and its error codes;
+* :mod:`~hil_sim.drive.power_state`: the **CiA 402 power state machine** run from the tables of
+  :mod:`hil_sim.cia402` (:data:`COMMANDS`, :data:`TRANSITIONS`, :data:`STATUSWORD`), modes of
+  operation 0x6060/0x6061 with cyclic synchronous position (8), following-error monitoring
+  (window 0x6065, time out 0x6066) raising a fault with EMCY 0x8611;
+* :mod:`~hil_sim.drive.cam_slot`: the **drive-side cam**: a table blob downloaded into 0x2000 is
+  verified with :meth:`ecam.CamTable.from_bytes` into a pending slot and activated atomically by
+  writing 1 to 0x2001:01; a bad, truncated or aborted download is refused and the running table
+  keeps running. With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003;
+* :mod:`~hil_sim.drive.runner`: when frames are handled, and the bus;
+* :mod:`~hil_sim.drive.virtual_drive`: :class:`VirtualDrive`, which composes them and runs the
+  **SYNC** cycle: each SYNC latches the synchronous RPDOs, advances the drive by one
+  interpolation period (0x60C2), runs :meth:`ServoAxis.cycle`, then sends the synchronous TPDOs.
+
+canopen 2.4 internals this relies on (canopen is pinned below 2.5): the SDO server's transfer
+state (``_buffer``, ``_index``), ``LocalNode._write_callbacks`` and ``LocalNode._find_object``.
+
+Two ways to run it:
+
+* lock-step (the rig): :meth:`VirtualDrive.boot`, then :meth:`VirtualDrive.process` whenever
+  frames may be waiting; every frame is handled at a defined point and all timestamps are
+  simulated;
+* free-running (an external master, e.g. canopen's ``BaseNode402``): :meth:`VirtualDrive.start`
+  / :meth:`VirtualDrive.stop` run a thread that handles frames as they come; heartbeats follow
+  the wall clock, the control loop still advances one interpolation period per SYNC.
+"""
+
+from hil_sim.drive.cam_slot import (
+    CAM_COMMAND_ACTIVATE, CAM_COMMAND_DISCARD, CAM_STATUS_ACTIVE,
+    CAM_STATUS_LAST_DOWNLOAD_REFUSED, CAM_STATUS_PENDING,
+)
+from hil_sim.drive.emcy import (
+    EMCY_FOLLOWING_ERROR, EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION, ERROR_REGISTER_GENERIC,
+    ERROR_REGISTER_PROFILE,
+)
+from hil_sim.drive.objects import EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od
+# The names these had in the single-module drive, which the tests use.
+from hil_sim.drive.objects import saturate_int32 as _saturate_int32  # noqa: F401
+from hil_sim.drive.objects import wrap_int32 as _wrap_int32  # noqa: F401
+from hil_sim.drive.sdo import (
+    ABORT_CANNOT_MAP, ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE,
+    ABORT_PDO_LENGTH,
+)
+from hil_sim.drive.virtual_drive import VirtualDrive
+
+__all__ = [
+    "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_DEVICE_STATE", "ABORT_INVALID_VALUE",
+    "ABORT_PDO_LENGTH", "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
+    "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_FOLLOWING_ERROR",
+    "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
+    "ERROR_REGISTER_PROFILE", "PROCESS_OBJECTS", "VirtualDrive", "interpolation_period_s",
+    "load_od",
+]

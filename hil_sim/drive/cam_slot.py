@@ -1,0 +1,151 @@
+"""The drive-side cam: a table blob downloaded into 0x2000 is verified with
+:meth:`ecam.CamTable.from_bytes` into a pending slot and activated atomically by writing 1 to
+0x2001:01; a bad, truncated or aborted download is refused and the running table keeps running.
+With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003.
+"""
+
+from __future__ import annotations
+
+from canopen.sdo import SdoAbortedError
+
+from ecam import CamTable
+from ecam.errors import TableFormatError
+from hil_sim.drive.objects import (
+    ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_LAST_ERROR_CODE, CAM_LAST_ERROR_MESSAGE, CAM_MODE,
+    CAM_STATUS, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32, wrap_int32,
+)
+from hil_sim.drive.sdo import ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE
+
+#: Cam control 0x2001:01 commands and 0x2001:02 status bits.
+CAM_COMMAND_NONE = 0
+CAM_COMMAND_ACTIVATE = 1
+CAM_COMMAND_DISCARD = 2
+CAM_STATUS_ACTIVE = 0x01
+CAM_STATUS_PENDING = 0x02
+CAM_STATUS_LAST_DOWNLOAD_REFUSED = 0x04
+
+#: Cam mode 0x2004: targets from the controller (CSP), or from the drive-side cam.
+CAM_MODE_CONTROLLER = 0
+CAM_MODE_DRIVE_SIDE = 1
+
+#: 0x2001:04 after a good download (and at power-on).
+NO_ERROR_MESSAGE = "no error"
+
+#: A table's slope is Q16: slave counts per master count x 2^16.
+_SLOPE_ONE = 65536.0
+
+
+class CamSlot:
+    """The active and the pending cam table, and the master position the cam follows.
+
+    Parameters
+    ----------
+    values : dict
+        The drive's live objects, where the cam control and status objects are kept.
+    """
+
+    def __init__(self, values: dict) -> None:
+        self.values = values
+        self.active_table: CamTable | None = None
+        self.pending_table: CamTable | None = None
+        self.active_blob: bytes | None = None
+        self.pending_blob: bytes | None = None
+        # Master position of the last cycle, unwrapped from INTEGER32 (None: take the next as is).
+        self.master_unwrapped: int | None = None
+
+    def reset(self) -> None:
+        """Power-on: no table, none pending."""
+        self.active_table = self.pending_table = None
+        self.active_blob = self.pending_blob = None
+        self.master_unwrapped = None
+
+    def forget_master(self) -> None:
+        """Take the next master position as it is: the previous one is stale."""
+        self.master_unwrapped = None
+
+    @property
+    def blob(self) -> bytes | None:
+        """What an upload of 0x2000 returns: the pending table, else the active one."""
+        return self.pending_blob or self.active_blob
+
+    # ------------------------------------------------------------------------ download
+    def on_download_refused(self, index: int, code: int, message: str) -> None:
+        """SDO server callback: a download was refused before it reached the object."""
+        if index == CAM_TABLE_DOWNLOAD.index:
+            self.refuse(code, message)
+
+    def refuse(self, code: int, message: str) -> None:
+        values = self.values
+        values[CAM_LAST_ERROR_CODE] = code
+        values[CAM_LAST_ERROR_MESSAGE] = message.encode("ascii", "replace").decode("ascii")
+        values[CAM_STATUS] |= CAM_STATUS_LAST_DOWNLOAD_REFUSED
+
+    def verify_download(self, blob: bytes) -> None:
+        """Verify a complete download of 0x2000 into the pending slot, or refuse it."""
+        try:
+            table = CamTable.from_bytes(blob)
+        except TableFormatError as exc:
+            self.refuse(ABORT_CANNOT_STORE, str(exc))
+            raise SdoAbortedError(ABORT_CANNOT_STORE) from None
+        self.pending_table = table
+        self.pending_blob = blob
+        values = self.values
+        values[PENDING_CAM_TABLE_CRC32] = table.crc32
+        values[CAM_STATUS] = ((values[CAM_STATUS] | CAM_STATUS_PENDING)
+                              & ~CAM_STATUS_LAST_DOWNLOAD_REFUSED)
+        values[CAM_LAST_ERROR_CODE] = 0
+        values[CAM_LAST_ERROR_MESSAGE] = NO_ERROR_MESSAGE
+
+    # ----------------------------------------------------------------- live object writes
+    def write_command(self, command: int) -> None:
+        """0x2001:01: activate or discard the pending table."""
+        values = self.values
+        if command == CAM_COMMAND_ACTIVATE:
+            if self.pending_table is None:
+                raise SdoAbortedError(ABORT_DEVICE_STATE)
+            # The swap is one assignment between two cycles: atomic for the control loop.
+            self.active_table, self.active_blob = self.pending_table, self.pending_blob
+            self.pending_table = self.pending_blob = None
+            self.master_unwrapped = None
+            values[ACTIVE_CAM_TABLE_CRC32] = self.active_table.crc32
+            values[PENDING_CAM_TABLE_CRC32] = 0
+            values[CAM_STATUS] = (values[CAM_STATUS] | CAM_STATUS_ACTIVE) & ~CAM_STATUS_PENDING
+        elif command == CAM_COMMAND_DISCARD:
+            self.pending_table = self.pending_blob = None
+            values[PENDING_CAM_TABLE_CRC32] = 0
+            values[CAM_STATUS] &= ~CAM_STATUS_PENDING
+        elif command != CAM_COMMAND_NONE:
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        values[CAM_COMMAND] = command
+
+    def write_mode(self, mode: int) -> None:
+        """0x2004: targets from the controller or from the cam; the cam needs an active table."""
+        if mode not in (CAM_MODE_CONTROLLER, CAM_MODE_DRIVE_SIDE):
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        if mode == CAM_MODE_DRIVE_SIDE and self.active_table is None:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)
+        if mode != self.values[CAM_MODE]:
+            self.master_unwrapped = None
+        self.values[CAM_MODE] = mode
+
+    @property
+    def drives_the_target(self) -> bool:
+        """Cam mode is on and there is a table to follow."""
+        return self.values[CAM_MODE] == CAM_MODE_DRIVE_SIDE and self.active_table is not None
+
+    # ------------------------------------------------------------------------- the cycle
+    def target(self, cycle_s: float) -> tuple[int, float]:
+        """Target [counts] and velocity offset [counts/s] from the active cam at the master
+        position 0x2003, for an interpolation period of ``cycle_s``."""
+        raw = self.values[MASTER_POSITION]
+        previous = self.master_unwrapped
+        if previous is None:
+            master = raw
+            previous = raw
+        else:
+            master = previous + wrap_int32(raw - wrap_int32(previous))
+        self.master_unwrapped = master
+        # two scalar lookups take the table's pure-integer path (no numpy overhead per cycle)
+        _, slope = self.active_table.lookup((previous + master) // 2, with_slope=True)
+        velocity = slope * (master - previous) / (_SLOPE_ONE * cycle_s)
+        return self.active_table.lookup(master), velocity

@@ -1,0 +1,136 @@
+"""The drive's object dictionary: the EDS file, its loader, and a name for every entry the drive
+uses, spelled as the EDS's ``ParameterName``.
+
+Each entry is an :class:`ObjectKey` (index, subindex); it is a tuple, so it is the same dict
+key as the ``(obj.index, obj.subindex)`` pairs built from PDO mappings.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+from pathlib import Path
+from typing import NamedTuple
+
+import canopen
+
+#: The drive's electronic data sheet, shipped beside this module.
+EDS_PATH = Path(__file__).with_name("drive.eds")
+
+
+class ObjectKey(NamedTuple):
+    """One entry of the object dictionary."""
+
+    index: int
+    subindex: int = 0
+
+
+# CiA 301 object dictionary areas: what NMT reset communication and reset application restore
+# to their power-on values.
+COMMUNICATION_AREA = range(0x1000, 0x2000)
+APPLICATION_AREA = range(0x2000, 0x10000)  # manufacturer and standardised profile areas
+
+# CiA 301 communication objects.
+ERROR_REGISTER = ObjectKey(0x1001)
+COB_ID_SYNC = ObjectKey(0x1005)
+COB_ID_EMCY = ObjectKey(0x1014)
+PRODUCER_HEARTBEAT_TIME = ObjectKey(0x1017)  # ms
+
+# CiA 301 PDO parameters: four RPDOs and four TPDOs, numbered from these indexes.
+RPDO_COMMUNICATION_PARAMETER = 0x1400
+RPDO_MAPPING_PARAMETER = 0x1600
+TPDO_COMMUNICATION_PARAMETER = 0x1800
+TPDO_MAPPING_PARAMETER = 0x1A00
+PDO_PARAMETERS = range(0x1400, 0x1C00)  # all communication and mapping parameters
+MAPPING_PARAMETERS = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))  # RPDO, TPDO
+COB_ID_USED_BY_PDO = 1  # subindex of a communication parameter
+TRANSMISSION_TYPE = 2  # subindex of a communication parameter
+NUMBER_OF_MAPPED_OBJECTS = 0  # subindex of a mapping parameter
+
+# CiA 301: a COB-ID object holds the 11-bit CAN id in its low bits; bit 31 of a PDO's marks
+# the PDO as not existing.
+CAN_ID_MASK = 0x7FF
+PDO_NOT_VALID = 0x80000000
+
+# CiA 301 pre-defined connection set: COB-IDs as function code + node id.
+NMT_COB_ID = 0x000
+SDO_RECEIVE_COB_ID = 0x600  # client -> server
+SDO_TRANSMIT_COB_ID = 0x580  # server -> client
+HEARTBEAT_COB_ID = 0x700
+
+# CiA 402 drive objects.
+ERROR_CODE = ObjectKey(0x603F)
+CONTROLWORD = ObjectKey(0x6040)
+STATUSWORD = ObjectKey(0x6041)
+MODES_OF_OPERATION = ObjectKey(0x6060)
+MODES_OF_OPERATION_DISPLAY = ObjectKey(0x6061)
+POSITION_ACTUAL_VALUE = ObjectKey(0x6064)  # counts
+FOLLOWING_ERROR_WINDOW = ObjectKey(0x6065)  # counts
+FOLLOWING_ERROR_TIME_OUT = ObjectKey(0x6066)  # ms
+VELOCITY_ACTUAL_VALUE = ObjectKey(0x606C)  # counts/s
+MOTOR_RATED_TORQUE = ObjectKey(0x6076)  # mN m
+TORQUE_ACTUAL_VALUE = ObjectKey(0x6077)  # per mille of the rated torque
+TARGET_POSITION = ObjectKey(0x607A)  # counts
+VELOCITY_OFFSET = ObjectKey(0x60B1)  # counts/s
+INTERPOLATION_TIME_PERIOD = 0x60C2
+INTERPOLATION_TIME_PERIOD_VALUE = ObjectKey(0x60C2, 1)
+INTERPOLATION_TIME_INDEX = ObjectKey(0x60C2, 2)
+FOLLOWING_ERROR_ACTUAL_VALUE = ObjectKey(0x60F4)  # counts
+
+# Manufacturer objects: the drive-side cam (blob format: firmware_tables/FORMAT.md).
+CAM_TABLE_DOWNLOAD = ObjectKey(0x2000)
+CAM_COMMAND = ObjectKey(0x2001, 1)
+CAM_STATUS = ObjectKey(0x2001, 2)
+CAM_LAST_ERROR_CODE = ObjectKey(0x2001, 3)
+CAM_LAST_ERROR_MESSAGE = ObjectKey(0x2001, 4)
+ACTIVE_CAM_TABLE_CRC32 = ObjectKey(0x2002)
+MASTER_POSITION = ObjectKey(0x2003)  # master counts
+CAM_MODE = ObjectKey(0x2004)
+PENDING_CAM_TABLE_CRC32 = ObjectKey(0x2005)
+
+#: Objects the drive keeps live (served by callbacks, written by RPDOs). Everything else lives
+#: in canopen's data store with the EDS defaults.
+PROCESS_OBJECTS = (
+    ERROR_REGISTER, ERROR_CODE, CONTROLWORD, STATUSWORD, MODES_OF_OPERATION,
+    MODES_OF_OPERATION_DISPLAY, POSITION_ACTUAL_VALUE, FOLLOWING_ERROR_WINDOW,
+    FOLLOWING_ERROR_TIME_OUT, VELOCITY_ACTUAL_VALUE, MOTOR_RATED_TORQUE, TORQUE_ACTUAL_VALUE,
+    TARGET_POSITION, VELOCITY_OFFSET, FOLLOWING_ERROR_ACTUAL_VALUE, CAM_COMMAND, CAM_STATUS,
+    CAM_LAST_ERROR_CODE, CAM_LAST_ERROR_MESSAGE, ACTIVE_CAM_TABLE_CRC32, MASTER_POSITION,
+    CAM_MODE, PENDING_CAM_TABLE_CRC32,
+)
+
+_INT32 = 1 << 32
+
+
+@functools.lru_cache(maxsize=8)
+def _parsed_od(path: str, node_id: int):
+    return canopen.import_od(path, node_id)
+
+
+def load_od(path, node_id: int):
+    """The object dictionary of an EDS file for ``node_id``: parsed once, then a deep copy per
+    caller, so runs share the parsing cost but never any state."""
+    return copy.deepcopy(_parsed_od(str(path), node_id))
+
+
+def interpolation_period_s(value: int, index: int) -> float:
+    """0x60C2 (CiA 402: interpolation time period = value x 10^index s) in seconds.
+
+    Divides for negative indexes: 10 x 10.0**-6 is 9.999...e-6, below the 10 us the scene
+    validator allows, where 10 / 10**6 is exactly the float nearest 1e-5.
+    """
+    return value / 10.0 ** -index if index < 0 else value * 10.0 ** index
+
+
+def saturate_int32(value: int) -> int:
+    """Clamp to INTEGER32, the data type of 0x60B1 (CiA 402 velocity offset).
+
+    A position wraps like a modular counter, but a velocity that leaves its type has no
+    meaningful wrap: a sign flip would command full speed backwards. It saturates.
+    """
+    return max(-0x80000000, min(0x7FFFFFFF, value))
+
+
+def wrap_int32(value: int) -> int:
+    """Two's complement wrap of an integer to INTEGER32."""
+    return (value + (1 << 31)) % _INT32 - (1 << 31)

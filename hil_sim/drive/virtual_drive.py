@@ -1,0 +1,377 @@
+"""The virtual drive: the protocol services of this package composed around a servo axis, and the
+control cycle that SYNC runs."""
+
+from __future__ import annotations
+
+import time
+
+import can
+from canopen.sdo import SdoAbortedError
+
+from ecam.errors import InputError
+from hil_sim.bus import SimNetwork, open_virtual_bus
+from hil_sim.cia402 import (
+    CYCLIC_SYNCHRONOUS_POSITION, ENERGIZED, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
+    OPERATIONAL, PRE_OPERATIONAL,
+)
+from hil_sim.control import Gains, ServoAxis
+from hil_sim.drive.cam_slot import NO_ERROR_MESSAGE, CamSlot
+from hil_sim.drive.emcy import EmcyProducer
+from hil_sim.drive.nmt import NmtSlave
+from hil_sim.drive.objects import (
+    APPLICATION_AREA, CAM_COMMAND, CAM_LAST_ERROR_MESSAGE, CAM_MODE, CAM_TABLE_DOWNLOAD,
+    COB_ID_SYNC, COMMUNICATION_AREA, CONTROLWORD, EDS_PATH, FOLLOWING_ERROR_ACTUAL_VALUE,
+    INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD, INTERPOLATION_TIME_PERIOD_VALUE,
+    MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, MOTOR_RATED_TORQUE, NMT_COB_ID,
+    PDO_PARAMETERS, POSITION_ACTUAL_VALUE, PROCESS_OBJECTS, PRODUCER_HEARTBEAT_TIME,
+    SDO_RECEIVE_COB_ID, SDO_TRANSMIT_COB_ID, TARGET_POSITION, TORQUE_ACTUAL_VALUE,
+    VELOCITY_ACTUAL_VALUE, VELOCITY_OFFSET, interpolation_period_s, load_od, saturate_int32,
+    wrap_int32,
+)
+from hil_sim.drive.pdo import PdoEngine, check_pdo_write
+from hil_sim.drive.power_state import PowerStateMachine
+from hil_sim.drive.runner import Runner
+from hil_sim.drive.sdo import (
+    ABORT_DEVICE_STATE, ABORT_INVALID_VALUE, DriveNode, DriveSdoServer, StoredObjects,
+)
+from hil_sim.mechanics import Mechanics
+
+#: Interpolation periods the drive accepts in 0x60C2 [s].
+MIN_INTERPOLATION_PERIOD_S = 1e-5
+MAX_INTERPOLATION_PERIOD_S = 1.0
+
+
+def _default_mechanics():
+    # A small servo motor on a rigid load: enough for protocol tests and `hil-sim drive`.
+    return Mechanics(motor_inertia=1.2e-4, load_inertia=3.0e-4, motor_damping=1e-4,
+                     motor_torque_limit=4.0)
+
+
+class VirtualDrive:
+    """A CiA 402 servo drive on a CAN bus (see the :mod:`hil_sim.drive` docstring).
+
+    Parameters
+    ----------
+    channel : str
+        Virtual channel to open when ``bus`` is None.
+    node_id : int
+        CANopen node id, 1..127.
+    bus : can.BusABC, optional
+        A bus of the caller's (then ``channel`` is unused and the caller shuts it down).
+    mechanics : hil_sim.mechanics.Mechanics, optional
+        The axis; default a small servo on a rigid load.
+    gains : hil_sim.control.Gains, optional
+        Control gains; default :meth:`Gains.from_mechanics` without velocity feed-forward
+        (the master's velocity offset 0x60B1 carries the speed).
+    substeps : int
+        Controller periods per interpolation period.
+    counts_per_motor_rad : float, optional
+        Position counts per motor radian (the drive's position factor).
+    model : {"auto", "rigid", "two_mass"}
+        Plant model, see :class:`hil_sim.control.ServoAxis`.
+    excitation_hz : float
+        Highest significant cam harmonic, for the "auto" model choice.
+    initial_counts : int
+        Position at power-on [counts].
+    heartbeat_ms : int, optional
+        Producer heartbeat time 0x1017 at power-on (default: the EDS value).
+    eds : str or Path, optional
+        Object dictionary; default the shipped ``drive.eds``.
+    """
+
+    def __init__(self, channel: str = "ecam", node_id: int = 1, bus: can.BusABC | None = None,
+                 *, mechanics=None, gains=None, substeps: int = 8,
+                 counts_per_motor_rad: float | None = None, model: str = "auto",
+                 excitation_hz: float = 0.0, initial_counts: int = 0,
+                 heartbeat_ms: int | None = None, eds=None) -> None:
+        if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
+            raise InputError(f"node_id {node_id!r} should be an integer in 1..127")
+        self.node_id = node_id
+        self.mechanics = mechanics if mechanics is not None else _default_mechanics()
+        self.gains = gains if gains is not None else Gains.from_mechanics(
+            self.mechanics, velocity_feedforward=0.0)
+        self.substeps = substeps
+        self.counts_per_motor_rad = counts_per_motor_rad
+        self.model = model
+        self.excitation_hz = excitation_hz
+        self._initial_counts = int(initial_counts)
+        self._heartbeat_ms_override = heartbeat_ms
+        self.time_s = 0.0  # drive time: interpolation periods run so far
+        self.cycles = 0
+        self.axis_wall_s = 0.0  # wall time spent in ServoAxis.cycle (profiling)
+        self.axis: ServoAxis | None = None
+        self._wall_clock = False
+        # The live objects; one dict for the drive's lifetime, shared by every service.
+        self.values: dict[tuple[int, int], object] = {}
+
+        own_bus = bus is None
+        bus = open_virtual_bus(channel) if own_bus else bus
+        self.network = SimNetwork(bus, self._now)
+        self.od = load_od(eds or EDS_PATH, node_id)
+        self.node = DriveNode(node_id, self.od)
+        self.objects = StoredObjects(self.node)
+        self.cam = CamSlot(self.values)
+        self.nmt = NmtSlave(self.network, node_id, self._now, self._reset, self._nmt_entered)
+        self.runner = Runner(bus, own_bus, self.network, self.nmt.service_heartbeat,
+                             f"VirtualDrive-{node_id}")
+        self.emcy = EmcyProducer(self.network, self.objects, self.nmt)
+        self.state_machine = PowerStateMachine(
+            self.values, self.emcy, lambda: self.axis.position_counts, self.cam.forget_master)
+        # Live objects whose write does more than store the value (SDO and RPDO alike).
+        self._writers = {
+            CONTROLWORD: self.state_machine.write_controlword,
+            MODES_OF_OPERATION: self.state_machine.write_mode,
+            CAM_MODE: self.cam.write_mode,
+            CAM_COMMAND: self.cam.write_command,
+        }
+        self.pdo = PdoEngine(self.network, self.objects, self.values, self.nmt, self.emcy,
+                             self._writers, self._on_sync)
+
+        # canopen's SDO server, NMT slave and heartbeat are replaced (see the package docstring).
+        self.node.sdo = DriveSdoServer(SDO_RECEIVE_COB_ID + node_id, SDO_TRANSMIT_COB_ID + node_id,
+                                       self.node, self.cam.on_download_refused)
+        self.node._write_callbacks.remove(self.node.nmt.on_write)
+        self.network.add_node(self.node)
+        self.network.unsubscribe(SDO_RECEIVE_COB_ID + node_id, self.node.sdo.on_request)
+        self.network.unsubscribe(NMT_COB_ID, self.node.nmt.on_command)
+        self.network.subscribe(SDO_RECEIVE_COB_ID + node_id, self._on_sdo_request)
+        self.network.subscribe(NMT_COB_ID, self.nmt.on_command)
+        self.node.add_read_callback(self._on_read)
+        self.node.add_write_callback(self._on_write)
+        self._reset_application()
+
+    # ------------------------------------------------------------------------ state views
+    @property
+    def bus(self) -> can.BusABC | None:
+        """The drive's bus (None once :meth:`close` released a bus the drive opened)."""
+        return self.runner.bus
+
+    @property
+    def state(self) -> str:
+        """The CiA 402 state."""
+        return self.state_machine.state
+
+    @property
+    def nmt_state(self) -> int:
+        """The NMT state code (as the heartbeat sends it)."""
+        return self.nmt.state
+
+    @property
+    def active_table(self):
+        """The cam table the drive runs (None before the first activation)."""
+        return self.cam.active_table
+
+    @property
+    def pending_table(self):
+        """The verified table waiting for activation (None if none)."""
+        return self.cam.pending_table
+
+    # ---------------------------------------------------------------------------- clocks
+    def _now(self) -> float:
+        return time.time() if self._wall_clock else self.time_s
+
+    @property
+    def cycle_s(self) -> float:
+        """Interpolation time period 0x60C2 [s]: value x 10^index."""
+        return self.axis.cycle_s
+
+    # ------------------------------------------------------------------ SDO server hooks
+    def _on_read(self, index, subindex, od):
+        key = (index, subindex)
+        if key in self.values:
+            return self.values[key]
+        if index == CAM_TABLE_DOWNLOAD.index:
+            return self.cam.blob
+        return None
+
+    def _on_write(self, index, subindex, od, data):
+        """SDO writes (and nothing else): validate, then update the drive."""
+        if index == CAM_TABLE_DOWNLOAD.index:
+            self.cam.verify_download(bytes(data))
+            return
+        value = od.decode_raw(data)
+        key = (index, subindex)
+        if key == MOTOR_RATED_TORQUE and value == 0:
+            # Motor rated torque divides every torque report (0x6077 is per mille of it): zero
+            # would make them infinite, so it is out of range (CiA 301 abort 0x06090030).
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        if key in self.values:
+            self._set_value(key, value)
+        elif index == PRODUCER_HEARTBEAT_TIME.index:
+            self.nmt.set_heartbeat_period(value / 1000.0)
+        elif index == INTERPOLATION_TIME_PERIOD:
+            self._write_interpolation_period(subindex, value)
+        elif index in PDO_PARAMETERS:
+            check_pdo_write(self.objects, index, subindex, value)
+            self.pdo.dirty = True
+        elif index == COB_ID_SYNC.index:
+            self.pdo.dirty = True
+
+    def _set_value(self, key, value) -> None:
+        """Write a live object and run its side effects."""
+        writer = self._writers.get(key)
+        if writer is None:
+            self.values[key] = value
+        else:
+            writer(value)
+
+    def _write_interpolation_period(self, subindex: int, value: int) -> None:
+        """0x60C2: only with the power stage off; the axis is rebuilt for the new period."""
+        if self.state_machine.state in ENERGIZED:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)
+        period_value = self.objects.stored(INTERPOLATION_TIME_PERIOD_VALUE)
+        period_index = self.objects.stored(INTERPOLATION_TIME_INDEX)
+        if subindex == INTERPOLATION_TIME_PERIOD_VALUE.subindex:
+            period_value = value
+        else:
+            period_index = value
+        period = interpolation_period_s(period_value, period_index)
+        if subindex in (INTERPOLATION_TIME_PERIOD_VALUE.subindex,
+                        INTERPOLATION_TIME_INDEX.subindex):
+            if not MIN_INTERPOLATION_PERIOD_S <= period <= MAX_INTERPOLATION_PERIOD_S:
+                raise SdoAbortedError(ABORT_INVALID_VALUE)
+            self._make_axis(self.axis.position_counts, period)
+
+    def _on_sdo_request(self, can_id, data, timestamp) -> None:
+        if self.nmt.state in (PRE_OPERATIONAL, OPERATIONAL):
+            self.node.sdo.on_request(can_id, data, timestamp)
+            if self.pdo.dirty:  # a PDO parameter was written: takes effect now
+                self.pdo.build()
+            self.pdo.send_event_tpdos()
+
+    # ------------------------------------------------------------------------------- NMT
+    def boot(self) -> None:
+        """Power on: initialise, send the boot-up message, enter PRE-OPERATIONAL."""
+        self.nmt.boot()
+
+    def _nmt_entered(self, state: int) -> None:
+        if state != OPERATIONAL:
+            self.pdo.latched.clear()
+        else:
+            self.pdo.send_event_tpdos()
+
+    def _reset(self, kind: str) -> None:
+        if kind == "application":
+            self._reset_application()
+        else:
+            self._reset_communication()
+
+    def _reset_communication(self) -> None:
+        self.objects.forget(COMMUNICATION_AREA)
+        heartbeat = self._heartbeat_ms_override
+        if heartbeat is not None:
+            self.objects.store(PRODUCER_HEARTBEAT_TIME, heartbeat)
+        self.nmt.reset_heartbeat(self.objects.stored(PRODUCER_HEARTBEAT_TIME) / 1000.0)
+        self.pdo.build()
+
+    def _reset_application(self) -> None:
+        """Power-on values: the live objects, the 402 state, the cam tables."""
+        position = self.axis.position_counts if self.axis is not None else self._initial_counts
+        self.objects.forget(APPLICATION_AREA)
+        values = self.values
+        values.clear()
+        values.update((key, self.objects.default(key)) for key in PROCESS_OBJECTS)
+        values[CAM_LAST_ERROR_MESSAGE] = NO_ERROR_MESSAGE
+        if self.mechanics.motor_torque_limit is not None:
+            values[MOTOR_RATED_TORQUE] = max(1, round(self.mechanics.motor_torque_limit * 1000.0))
+        self.cam.reset()
+        self._make_axis(position)
+        self._reset_communication()
+        self.state_machine.reset(self.axis.position_counts)
+
+    def _make_axis(self, position_counts: int, cycle_s: float | None = None) -> None:
+        """(Re)build the servo axis at ``position_counts`` for an interpolation period."""
+        kwargs = {}
+        if self.counts_per_motor_rad is not None:
+            kwargs["counts_per_motor_rad"] = self.counts_per_motor_rad
+        if cycle_s is None:
+            cycle_s = interpolation_period_s(self.objects.stored(INTERPOLATION_TIME_PERIOD_VALUE),
+                                             self.objects.stored(INTERPOLATION_TIME_INDEX))
+        self.axis = ServoAxis(self.mechanics, self.gains, cycle_s=cycle_s,
+                              substeps=self.substeps, model=self.model,
+                              excitation_hz=self.excitation_hz,
+                              initial_counts=int(position_counts), **kwargs)
+        self.values[POSITION_ACTUAL_VALUE] = wrap_int32(self.axis.position_counts)
+        self.values[FOLLOWING_ERROR_ACTUAL_VALUE] = 0
+
+    # ----------------------------------------------------------------------------- cycle
+    def _on_sync(self, can_id, data, timestamp) -> None:
+        self.run_cycle(synchronous=True)
+
+    def free_run(self) -> None:
+        """Run one interpolation period without a SYNC (the SYNC was lost): the control loop
+        keeps its own timer, synchronous RPDOs stay latched and no synchronous TPDO is sent."""
+        self.run_cycle(synchronous=False)
+
+    def run_cycle(self, synchronous: bool = True) -> None:
+        """One interpolation period: latch RPDOs, run the axis, publish, send TPDOs."""
+        values = self.values
+        if synchronous:
+            self.pdo.apply_latched()
+        state_machine = self.state_machine
+        state = state_machine.state
+        axis = self.axis
+        if state in ENERGIZED:
+            if (state == OPERATION_ENABLED
+                    and values[MODES_OF_OPERATION_DISPLAY] == CYCLIC_SYNCHRONOUS_POSITION):
+                if self.cam.drives_the_target:
+                    target, velocity = self.cam.target(self.cycle_s)
+                    values[TARGET_POSITION] = wrap_int32(target)
+                    values[VELOCITY_OFFSET] = saturate_int32(round(velocity))
+                else:
+                    target, velocity = values[TARGET_POSITION], values[VELOCITY_OFFSET]
+            elif state == OPERATION_ENABLED:
+                target, velocity = values[TARGET_POSITION], 0.0  # no mode: hold the last target
+            else:
+                target, velocity = state_machine.hold_counts, 0.0
+            start = time.perf_counter()
+            axis.cycle(target, velocity)
+            self.axis_wall_s += time.perf_counter() - start
+            plant = axis.plant
+            following_error = axis.following_error_counts
+            values[POSITION_ACTUAL_VALUE] = wrap_int32(axis.position_counts)
+            values[FOLLOWING_ERROR_ACTUAL_VALUE] = wrap_int32(following_error)
+            values[VELOCITY_ACTUAL_VALUE] = wrap_int32(
+                round(plant.motor_speed * axis.counts_per_motor_rad))
+            torque = round(plant.torque * 1e6 / values[MOTOR_RATED_TORQUE])
+            values[TORQUE_ACTUAL_VALUE] = min(max(torque, -32768), 32767)
+            state_machine.check_following_error(following_error, self.time_s)
+            if state == FAULT_REACTION_ACTIVE:
+                state_machine.enter(FAULT)  # transition 14: the reaction (hold, then off) is done
+        else:
+            values[VELOCITY_ACTUAL_VALUE] = 0
+            values[TORQUE_ACTUAL_VALUE] = 0
+        self.cycles += 1
+        self.time_s = self.cycles * self.cycle_s
+        self.nmt.service_heartbeat()
+        if synchronous:
+            self.pdo.send_sync_tpdos()
+        self.pdo.send_event_tpdos()
+
+    # -------------------------------------------------------------------------- running
+    def process(self) -> int:
+        """Handle every frame waiting on the bus, in order (lock-step use); return the count."""
+        return self.runner.process()
+
+    def start(self) -> None:
+        """Boot and handle frames in a thread of its own until :meth:`stop` (external masters)."""
+        self.runner.start(self._boot_on_wall_clock)
+
+    def _boot_on_wall_clock(self) -> None:
+        # An external master runs on real time: heartbeats and frame stamps follow it.
+        self._wall_clock = True
+        self.boot()
+
+    def stop(self) -> None:
+        """Stop the thread of :meth:`start` and release the bus if the drive opened it."""
+        self.runner.stop()
+
+    def close(self) -> None:
+        """Release the bus if the drive opened it."""
+        self.runner.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()

@@ -109,7 +109,7 @@ def compile_table(
             )
         return job.build(KINDS[spec.interp], intervals, certify=certify, progress=progress)
     kinds = list(KINDS.values()) if spec.interp == "auto" else [KINDS[spec.interp]]
-    return job.search(kinds, spec.tolerance_counts(), certify=certify, progress=progress)
+    return job.search(kinds, spec.tolerance_counts(profile.slave_unit), certify=certify, progress=progress)
 
 
 def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) -> list[int]:

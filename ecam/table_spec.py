@@ -26,20 +26,30 @@ DEFAULT_MASTER_COUNTS = 2**16
 DEFAULT_COUNTS_PER_UNIT = 1000.0
 
 
-def parse_tolerance(tolerance, field: str = "tolerance") -> tuple[float, bool]:
-    """A tolerance as (value, in_counts): a number in slave units, or a string such as
-    ``"2 counts"`` (also ``"2 count"``, ``"2 lsb"``) or ``"0.001"`` (slave units)."""
+_COUNT_WORDS = ("counts", "count", "lsb")
+
+
+def parse_tolerance(tolerance, field: str = "tolerance", slave_unit: str | None = None) -> tuple[float, bool]:
+    """A tolerance as (value, in_counts).
+
+    A number is in slave units; a string is a number and an optional unit: ``"2 counts"`` (also
+    ``count``, ``lsb``), ``"0.001"`` or ``"0.001 deg"`` when ``deg`` is the cam's slave unit.
+    Without ``slave_unit`` any unit word is accepted here and checked when the cam is known.
+    """
     value, in_counts = tolerance, False
     if isinstance(tolerance, str):
-        text = tolerance.strip().lower()
-        number = text.removesuffix("counts").removesuffix("count").removesuffix("lsb").strip()
-        in_counts = number != text
+        number, _, unit = tolerance.strip().partition(" ")
+        unit = unit.strip()
+        in_counts = unit.lower() in _COUNT_WORDS
         try:
             value = float(number)
         except ValueError:
             value = None
+        if unit and not in_counts and slave_unit is not None and unit != slave_unit:
+            raise validate.fail(field, tolerance, f"in the cam's slave unit ({slave_unit}) or in counts")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
-        raise validate.fail(field, tolerance, "a number > 0 in slave units or a string like '2 counts'")
+        raise validate.fail(field, tolerance, "a number > 0 in slave units or a string like '2 counts' or "
+                            "'0.01 mm' (the cam's slave unit)")
     return float(value), in_counts
 
 
@@ -93,11 +103,12 @@ class TableSpec:
         if self.interp == "auto" and self.tolerance is None:
             raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
 
-    def tolerance_counts(self) -> float | None:
-        """The tolerance in slave counts (None for a table of fixed size)."""
+    def tolerance_counts(self, slave_unit: str | None = None) -> float | None:
+        """The tolerance in slave counts (None for a table of fixed size); ``slave_unit`` checks
+        a tolerance written with a unit word, such as ``"0.001 deg"``."""
         if self.tolerance is None:
             return None
-        value, in_counts = parse_tolerance(self.tolerance)
+        value, in_counts = parse_tolerance(self.tolerance, slave_unit=slave_unit)
         return value if in_counts else value * self.slave_counts_per_unit
 
     @classmethod

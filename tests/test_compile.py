@@ -215,7 +215,9 @@ BAD = [
     (dict(points=65, master_counts=2**31 + 1), "master_counts: 2147483649 should be an integer in 2..2147483648"),
     (dict(points=65, slave_counts_per_unit=-1.0), "slave_counts_per_unit: -1 should be >= 1e-06"),
     (dict(points=65, interp="spline"), "interp: 'spline' should be one of linear, cubic, quintic, auto"),
-    (dict(tolerance="3 furlongs"), "tolerance: '3 furlongs' should be a number > 0"),
+    (dict(tolerance="3 furlongs"), "tolerance: '3 furlongs' should be in the cam's slave unit"),
+    (dict(tolerance="three counts"), "tolerance: 'three counts' should be a number > 0"),
+    (dict(tolerance="-2 counts"), "tolerance: '-2 counts' should be a number > 0"),
     (dict(points=65, tolerance=0.01), "give either points or tolerance, not both"),
     (dict(points=65, master_counts=True), "master_counts: True should be an integer"),
     (dict(points=65, slave_counts_per_unit=float("nan")), "slave_counts_per_unit: nan should be finite"),
@@ -301,3 +303,18 @@ def test_tolerance_just_above_the_half_count_floor(msine):
     assert table.report["max_error_counts"] <= table.report["predicted_error_counts"] <= 0.6
     with pytest.raises(TableFormatError, match="best bound found is 0.5"):
         compile_table(msine, interp="auto", tolerance="0.5 counts")
+
+
+def test_a_tolerance_in_the_cams_slave_unit_equals_the_plain_number(msine):
+    unit = msine.slave_unit
+    worded = compile_table(msine, interp="cubic", tolerance=f"0.001 {unit}", certify=False)
+    plain_number = compile_table(msine, interp="cubic", tolerance=0.001, certify=False)
+    assert worded.to_bytes() == plain_number.to_bytes()
+    assert worded.report["tolerance_units"] == 0.001
+
+
+def test_a_tolerance_in_another_unit_is_refused_naming_the_cams_unit(msine):
+    with pytest.raises(ecam.InputError) as info:
+        compile_table(msine, interp="cubic", tolerance="0.001 furlong")
+    assert str(info.value) == (f"tolerance: '0.001 furlong' should be in the cam's slave unit "
+                               f"({msine.slave_unit}) or in counts")

@@ -1,0 +1,128 @@
+"""The full plant: gear backlash, Coulomb friction and coupling inertia on the two-mass model."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ecam.errors import InputError
+from hil_sim.full_plant import ARCMIN, Effects, FullPlant
+from hil_sim.mechanics import Mechanics
+from hil_sim.plant import TwoMassPlant
+
+DT = 1e-3 / 16
+
+
+def axis(**overrides):
+    values = dict(motor_inertia=2e-4, gear_ratio=0.1, load_inertia=0.05, coupling_stiffness=2e4,
+                  coupling_damping=2.0, motor_damping=1e-4, load_damping=0.01, gear_efficiency=0.95)
+    values.update(overrides)
+    return Mechanics(**values)
+
+
+def test_without_effects_it_is_the_two_mass_plant():
+    m = axis()
+    full, linear = FullPlant(m, Effects(), DT), TwoMassPlant(m, DT)
+    full.reset(0.3, 5.0)
+    linear.reset(0.3, 5.0)
+    rng = np.random.default_rng(7)
+    for torque in rng.normal(0.0, 2.0, 2000):
+        full.step(torque)
+        linear.step(torque)
+    np.testing.assert_allclose(full.x, linear.x, rtol=1e-9, atol=1e-12)
+    assert full.coupling_torque == pytest.approx(linear.coupling_torque, rel=1e-8, abs=1e-9)
+
+
+def test_motor_friction_stops_a_coasting_axis_when_the_energy_says_and_holds_it_at_rest():
+    # Stiff coupling, no viscous terms: the axis decelerates at F / J_eq and stops at J_eq w0 / F.
+    m = axis(coupling_stiffness=1e7, coupling_damping=50.0, motor_damping=0.0, load_damping=0.0,
+             gear_efficiency=1.0)
+    friction = 0.2
+    plant = FullPlant(m, Effects(motor_coulomb_friction=friction), DT)
+    w0 = 100.0
+    plant.reset(0.0, w0)
+    j_eq = m.motor_inertia + m.load_inertia * m.gear_ratio**2
+    expected = j_eq * w0 / friction
+    steps = 0
+    while plant.motor_speed > 0.0 and steps < 10**6:
+        plant.step(0.0)
+        steps += 1
+    assert steps * DT == pytest.approx(expected, rel=0.01)
+    for _ in range(200):  # stiction: no creep, no chatter
+        plant.step(0.0)
+        assert plant.motor_speed == 0.0
+
+
+def test_a_torque_below_the_friction_does_not_move_the_axis():
+    m = axis()
+    plant = FullPlant(m, Effects(motor_coulomb_friction=0.5, load_coulomb_friction=2.0), DT)
+    plant.reset(1.0, 0.0)
+    for _ in range(500):
+        plant.step(0.3)
+    assert plant.motor_speed == 0.0 and plant.load_speed == 0.0
+    assert plant.motor_angle == pytest.approx(1.0, abs=1e-15)
+
+
+def test_the_load_stays_put_until_the_gear_takes_up_the_backlash():
+    backlash = 3 * ARCMIN
+    m = axis()
+    plant = FullPlant(m, Effects(gear_backlash=backlash), DT)
+    plant.reset()
+    crossed = None
+    for k in range(4000):
+        plant.step(0.05)
+        if crossed is None and abs(plant.twist) <= backlash / 2:
+            assert plant.load_speed == 0.0 and plant.coupling_torque == 0.0
+        elif crossed is None:
+            crossed = k
+    assert crossed is not None and crossed > 0
+    assert plant.load_speed > 0.0 and plant.coupling_torque > 0.0
+    # Inside the gap the motor turns alone: r * (T t^2 / 2 J_m) = backlash / 2.
+    expected = math.sqrt(backlash * m.motor_inertia / (m.gear_ratio * 0.05))
+    assert abs((crossed + 1) * DT - expected) <= 1.5 * DT
+
+
+def test_coupling_inertia_splits_half_to_each_side():
+    m = axis(coupling_stiffness=1e8, coupling_damping=200.0, motor_damping=0.0, load_damping=0.0,
+             gear_efficiency=1.0)
+    extra = 0.01
+    with_coupling = FullPlant(m, Effects(coupling_inertia=extra), DT)
+    for plant in (with_coupling,):
+        plant.reset()
+        for _ in range(1600):
+            plant.step(1.0)
+    j_eq = m.motor_inertia + (m.load_inertia + extra) * m.gear_ratio**2
+    assert with_coupling.motor_speed == pytest.approx(1600 * DT / j_eq, rel=2e-3)
+
+
+def test_the_effects_dissipate_energy():
+    m = axis()
+    plant = FullPlant(m, Effects(gear_backlash=8 * ARCMIN, motor_coulomb_friction=0.01,
+                                 load_coulomb_friction=0.5, coupling_inertia=1e-3), DT)
+    plant.reset(0.0, 50.0)
+
+    def energy():
+        e = plant.effects
+        jm = m.motor_inertia + 0.5 * e.coupling_inertia * m.gear_ratio**2 / m.gear_efficiency
+        jl = m.load_inertia + 0.5 * e.coupling_inertia
+        return 0.5 * (jm * plant.motor_speed**2 + (jl * plant.load_speed**2
+                                                   + m.coupling_stiffness * plant.wind_up**2) / m.gear_efficiency)
+
+    before = energy()
+    history = []
+    for _ in range(40000):
+        plant.step(0.0)
+        history.append(energy())
+    assert max(history) <= before * (1 + 1e-9)
+    assert history[-1] < 1e-3 * before
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("gear_backlash", -1e-3, "gear_backlash: -0.001 should be >= 0"),
+    ("load_coulomb_friction", math.inf, "load_coulomb_friction: inf should be finite"),
+    ("gear_backlash", 4.0, "gear_backlash: 4 should be <= pi rad (half a turn)"),
+])
+def test_bad_effects_are_one_line(field, value, message):
+    with pytest.raises(InputError) as info:
+        Effects(**{field: value})
+    assert str(info.value) == message

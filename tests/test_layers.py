@@ -43,8 +43,11 @@ def _imports(name: str, path: Path, known) -> set[str]:
                 target = ".".join(base + ([node.module] if node.module else []))
             else:
                 target = node.module
-            out.add(target)
-            out.update(f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in known)
+            submodules = {f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in known}
+            # `from . import x` of a submodule imports x; its package is the importer's own parent.
+            if not (node.level and submodules):
+                out.add(target)
+            out.update(submodules)
     out.discard(name)
     return out
 

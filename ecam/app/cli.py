@@ -38,6 +38,12 @@ def _bench(args) -> int:
     return main(args)
 
 
+def _export(args) -> int:
+    from .export_command import cmd_export
+
+    return cmd_export(args)
+
+
 def _sim(args) -> int:
     from .rig_commands import run_sim
 
@@ -117,6 +123,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--format", default="c,bin", help="comma list of c, bin, csv, json (default: c,bin)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cam_commands.cmd_compile)
+
+    p = sub.add_parser("export", help="a cam table for your controller, certified under its own interpolation")
+    p.add_argument("cam", help="cam file (TOML)")
+    p.add_argument("--to", required=True, metavar="FORMAT",
+                   help="codesys, twincat-cnc, kollmorgen, elmo, technosoft or csv")
+    p.add_argument("--interp", help="twincat-cnc: linear (default) or cubic; csv: linear (default), cubic or "
+                                    "quintic")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts' "
+                                           "(default: the cam file's [table] tolerance)")
+    group.add_argument("--points", type=int, help="points in the table instead of a tolerance")
+    p.add_argument("--master-counts", type=int, help="master period in counts (Elmo, Technosoft; reports)")
+    p.add_argument("--slave-counts-per-unit", type=float, help="slave counts per slave unit (reports in counts)")
+    p.add_argument("-o", "--output", help="file to write (default: NAME.FORMAT.EXT here)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=_export)
 
     p = sub.add_parser("demo", help="the main job on the built-in seed cams")
     p.add_argument("-o", "--output", default="ecam-demo", help="directory for plots and tables")

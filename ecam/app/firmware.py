@@ -1,4 +1,4 @@
-"""Generate firmware_tables/: the seed cams' tables and golden vectors, byte for byte
+"""Generate firmware_tables/: the seed cams' tables, golden vectors and vendor exports, byte for byte
 reproducible (no dates: a format version and a content CRC instead).
 
     python3 -m ecam.app.firmware [DIR]    # default: the repository's firmware_tables/
@@ -6,6 +6,7 @@ reproducible (no dates: a format version and a content CRC instead).
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -14,11 +15,15 @@ import numpy as np
 from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
-from ecam.export import to_c_header, to_json
+from ecam.export import export_cam, plain, to_c_header, to_json
 
 KINDS = ("linear", "cubic", "quintic")
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_tables"
 VECTOR_SEED = 20261121
+# Vendor exports of every seed cam (format, interpolation), at this share of the cam's stroke.
+EXPORTS = (("codesys", None), ("twincat-cnc", "linear"), ("twincat-cnc", "cubic"), ("kollmorgen", None),
+           ("elmo", None), ("technosoft", None), ("csv", "linear"), ("csv", "cubic"), ("csv", "quintic"))
+EXPORT_TOLERANCE = 1e-4  # of the stroke
 
 
 def golden_queries(table) -> np.ndarray:
@@ -55,6 +60,29 @@ def generate(cams_dir: Path) -> dict[str, bytes]:
             fixed = compile_table(profile, interp=kind, points=table.points, certify=False)
             files[f"vectors/{stem}_{kind}.bin"] = fixed.to_bytes()
             files[f"vectors/{stem}_{kind}.csv"] = vectors_csv(fixed).encode()
+        files.update(vendor_exports(profile, stem))
+    return files
+
+
+def vendor_exports(profile, stem: str) -> dict[str, bytes]:
+    """exports/STEM.FORMAT[-INTERP].EXT for every vendor format at 1e-4 of the stroke, and
+    exports/STEM.certificates.json with every export's certificate."""
+    low, high = profile.slave_range
+    tolerance = float(f"{EXPORT_TOLERANCE * (high - low):.6g}")
+    files: dict[str, bytes] = {}
+    certificates = []
+    for fmt, interp in EXPORTS:
+        result = export_cam(profile, fmt, tolerance=tolerance, interp=interp, name=stem)
+        label = fmt if interp is None else f"{fmt}-{interp}"
+        relative = f"exports/{stem}.{label}{result.suffix}"
+        files[relative] = result.content.encode()
+        summary = result.summary()
+        summary["file"] = relative
+        certificates.append(summary)
+    document = {"cam": stem, "tolerance_units": tolerance, "tolerance_share_of_stroke": EXPORT_TOLERANCE,
+                "exports": certificates}
+    files[f"exports/{stem}.certificates.json"] = (json.dumps(plain(document), indent=1, sort_keys=True)
+                                                  + "\n").encode()
     return files
 
 

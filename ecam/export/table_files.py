@@ -1,4 +1,5 @@
-"""Exporters: pure functions from a CamTable to text or bytes. Only the CLI writes files.
+"""The table exporters: pure functions from a compiled CamTable to text or bytes (C header, blob,
+CSV, JSON). Only the CLI writes files.
 
 Generated files carry the format version and a content hash (CRC-32), never a date, so the same
 table always gives the same bytes.
@@ -13,7 +14,7 @@ import re
 
 import numpy as np
 
-from .table import FORMAT_VERSION, CamTable
+from ..table import FORMAT_VERSION, CamTable
 
 __all__ = ["to_c_header", "to_blob", "to_csv", "to_json", "EXPORTERS", "identifier", "plain"]
 

@@ -1,0 +1,34 @@
+"""`ecam export CAM --to FORMAT`: the cam as the table a machine builder's controller reads, with
+the fewest points that meet the tolerance under that controller's own interpolation, and the error
+certificate. The library returns the text (``ecam.export.export_cam``); this writes the file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ecam.atomic_files import write_files
+from ecam.camfile import load_cam
+from ecam.errors import InputError
+from ecam.export import export_cam, identifier, plain
+
+
+def cmd_export(args) -> int:
+    profile = load_cam(args.cam)
+    name = profile.name or Path(args.cam).stem
+    result = export_cam(profile, args.to, tolerance=args.tolerance, points=args.points, interp=args.interp,
+                        master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
+                        name=name)
+    path = Path(args.output) if args.output else Path(f"{identifier(name)}.{result.format}{result.suffix}")
+    try:
+        write_files({path: result.content})
+    except OSError as exc:
+        raise InputError(f"output: {str(path)!r} cannot be written: {exc.strerror or exc}") from None
+    if args.json:
+        summary = result.summary()
+        summary["file"] = str(path)
+        print(json.dumps(plain(summary), indent=1, sort_keys=True))
+    else:
+        print(result.report_text(name))
+        print(f"  wrote {path}")
+    return 0

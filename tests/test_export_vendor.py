@@ -1,0 +1,242 @@
+"""Vendor exports from Python: tolerance met with the fewest points, the certificate's bound holds
+over a population of cams, net-stroke cams exported or refused with the reason, one-line errors,
+deterministic bytes."""
+
+import math
+
+import numpy as np
+import pytest
+
+import ecam
+from ecam import InputError, TableFormatError
+from ecam.camfile import parse_cam
+from ecam.export import VENDOR_FORMATS, export_cam, vendor_format
+from ecam.profile import CamProfile, Segment
+
+COMBINATIONS = [("codesys", None), ("twincat-cnc", "linear"), ("twincat-cnc", "cubic"), ("kollmorgen", None),
+                ("elmo", None), ("technosoft", None), ("csv", "linear"), ("csv", "cubic"), ("csv", "quintic")]
+
+KNIFE = {  # a rotary knife: the drum turns 360 deg per cut, 1.2 deg per master deg through the cut
+    "name": "knife", "master_unit": "deg", "slave_unit": "deg", "master_period": 360.0, "periodic": True,
+    "table": {"master_counts": 36000, "slave_counts_per_unit": 1000.0},
+    "segment": [
+        {"law": "constant_velocity", "span": 60.0, "stroke": 72.0},
+        {"law": "poly5", "span": 240.0, "stroke": 216.0, "start_velocity": "match", "end_velocity": "match"},
+        {"law": "constant_velocity", "span": 60.0, "stroke": 72.0},
+    ],
+}
+
+
+def test_the_old_exporters_are_still_importable_from_ecam_export():
+    from ecam import export
+    from ecam.export import EXPORTERS, identifier
+
+    for name in ("to_c_header", "to_blob", "to_csv", "to_json", "plain", "export_cam", "VENDOR_FORMATS"):
+        assert callable(getattr(export, name)) or isinstance(getattr(export, name), dict)
+    assert set(EXPORTERS) == {"c", "bin", "csv", "json"}
+    assert identifier("9 lives") == "cam_9_lives"
+
+
+@pytest.mark.parametrize("fmt, interp", COMBINATIONS)
+@pytest.mark.parametrize("tolerance", ["5 counts", 4e-4])
+def test_tolerance_is_met_and_the_bound_holds(drrd, fmt, interp, tolerance):
+    result = export_cam(drrd, fmt, tolerance=tolerance, interp=interp)
+    c = result.certificate
+    limit_units = 5 / 100000 if isinstance(tolerance, str) else tolerance
+    assert c.predicted_error_units <= limit_units
+    assert c.max_error_units <= c.predicted_error_units
+    assert math.isclose(c.max_error_counts, c.max_error_units * 100000)
+    assert 2 <= result.points <= result.limit
+    assert 0 <= c.max_error_at_master <= drrd.master_period
+
+
+@pytest.mark.parametrize("fmt, interp", [("codesys", None), ("csv", "linear"), ("csv", "cubic"),
+                                         ("csv", "quintic")])
+def test_free_placement_uses_the_fewest_points(msine, fmt, interp):
+    """With one point fewer, placed by the error, the bound misses the tolerance (the greedy
+    placement is optimal for a bound that grows with the interval)."""
+    tolerance = 5e-3
+    best = export_cam(msine, fmt, tolerance=tolerance, interp=interp)
+    fewer = export_cam(msine, fmt, points=best.points - 1, interp=interp)
+    assert fewer.points == best.points - 1
+    assert fewer.certificate.predicted_error_units > tolerance
+
+
+@pytest.mark.parametrize("fmt, interp", [("elmo", None), ("technosoft", None), ("twincat-cnc", "cubic")])
+def test_equidistant_formats_use_the_fewest_points(drrd, fmt, interp):
+    """The next smaller point count the format allows misses the tolerance."""
+    tolerance = 1.75e-4
+    best = export_cam(drrd, fmt, tolerance=tolerance, interp=interp)
+    if fmt == "elmo":  # the next smaller divisor of the master period (36864 counts)
+        smaller = [d for d in range(1, best.points - 1) if 36864 % d == 0][-1] + 1
+    elif fmt == "technosoft":  # twice the master step
+        smaller = (best.points - 1) // 2 + 1
+    else:  # the next smaller divisor of 360 deg in 1e-4 deg
+        smaller = [n for n in range(4, best.points) if 3600000 % n == 0][-1]
+    other = export_cam(drrd, fmt, points=smaller, interp=interp)
+    assert other.certificate.predicted_error_units > tolerance
+
+
+def rise_return(law_name, stroke, period):
+    law = ecam.law(law_name)
+    half = period / 2
+    return CamProfile((Segment(0, half, 0, stroke, law, "rise"), Segment(half, period, stroke, 0, law, "return")),
+                      period, True, master_unit="deg", slave_unit="mm",
+                      table={"master_counts": 2**14, "slave_counts_per_unit": 1000.0})
+
+
+POINTS = {("codesys", None): 12, ("twincat-cnc", "linear"): 60, ("twincat-cnc", "cubic"): 60,
+          ("kollmorgen", None): 30, ("elmo", None): 129, ("technosoft", None): 129, ("csv", "linear"): 40,
+          ("csv", "cubic"): 20, ("csv", "quintic"): 12}
+
+
+@pytest.mark.parametrize("law_name", ["cycloidal", "modified_trapezoid", "harmonic", "poly345", "poly4567",
+                                      "modified_sine", "constant_acceleration", "cubic"])
+def test_measured_never_exceeds_the_bound_over_a_population(law_name):
+    """A fixed-seed population of rise-return cams (law, stroke, period) in every format: the
+    measured error stays within the predicted bound, every reading."""
+    rng = np.random.default_rng(sum(map(ord, law_name)))
+    stroke = float(rng.uniform(0.5, 80.0))
+    period = float(rng.choice([360.0, 90.0, 720.0]))
+    profile = rise_return(law_name, stroke, period)
+    for (fmt, interp), points in POINTS.items():
+        result = export_cam(profile, fmt, points=points, interp=interp)
+        c = result.certificate
+        assert result.points == points, (fmt, interp)
+        assert c.max_error_units <= c.predicted_error_units, (law_name, fmt, interp, c)
+        for name, bound, measured in c.readings:
+            assert measured <= bound, (law_name, fmt, interp, name)
+
+
+def test_an_unreachable_tolerance_is_one_line_with_the_best_error_and_the_limit(drrd):
+    with pytest.raises(TableFormatError) as info:
+        export_cam(drrd, "twincat-cnc", tolerance="0.5 counts")
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith("tolerance: 5e-06 in (0.5 counts) should be at least ")
+    assert "within its limit of 360 points" in message
+    best = float(message.split("should be at least ")[1].split()[0])
+    reached = export_cam(drrd, "twincat-cnc", points=360)
+    assert best >= reached.certificate.predicted_error_units * (1 - 1e-3)
+    with pytest.raises(TableFormatError, match="within its limit of 1024 points"):
+        export_cam(drrd, "elmo", tolerance="1 counts")
+    with pytest.raises(TableFormatError, match="within its limit of 8192 points"):
+        export_cam(drrd, "technosoft", tolerance="0.5 counts")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"format": "siemens", "points": 10}, "format: 'siemens' should be one of codesys, twincat-cnc"),
+    ({"format": "csv", "interp": "spline", "points": 10}, "interp: 'spline' should be one of linear, cubic"),
+    ({"format": "twincat-cnc", "points": 400}, "points: 400 should be an integer in 2..360"),
+    ({"format": "kollmorgen", "points": 4}, "points: 4 should be an integer in 5..1000"),
+    ({"format": "csv", "points": 10, "tolerance": 1e-3}, "points: 10 should be given without a tolerance"),
+    ({"format": "csv", "tolerance": -1.0}, "tolerance: -1 should be a number > 0"),
+    ({"format": "elmo", "points": 100}, "points: 100 should be one more than a number of equal whole master"),
+    ({"format": "csv", "points": 10, "slave_counts_per_unit": 0.0}, "slave_counts_per_unit: 0 should be"),
+])
+def test_bad_arguments_name_the_field_the_value_and_the_expectation(drrd, kwargs, message):
+    kwargs = dict(kwargs)
+    fmt = kwargs.pop("format")
+    with pytest.raises(InputError) as info:
+        export_cam(drrd, fmt, **kwargs)
+    assert str(info.value).startswith(message), str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_without_points_or_tolerance_the_cam_files_tolerance_applies(msine):
+    result = export_cam(msine, "csv")
+    assert result.certificate.tolerance_units == pytest.approx(0.002)
+    bare = CamProfile(msine.segments, msine.master_period, True, slave_unit="mm")
+    with pytest.raises(InputError, match="^tolerance: missing"):
+        export_cam(bare, "csv")
+
+
+@pytest.mark.parametrize("fmt, interp", COMBINATIONS)
+def test_the_same_cam_gives_the_same_bytes(msine, fmt, interp):
+    first = export_cam(msine, fmt, tolerance=5e-3, interp=interp)
+    second = export_cam(ecam.load_cam(ecam.camfile.CAMS_DIR / "modified_sine.toml"), fmt, tolerance=5e-3,
+                        interp=interp)
+    assert first.content == second.content and first.crc32 == second.crc32
+    assert "20" not in first.content.split("\n", 1)[0] or "Generated by ecam" in first.content  # no dates
+
+
+@pytest.mark.parametrize("fmt, interp", [("codesys", None), ("twincat-cnc", "linear"), ("twincat-cnc", "cubic"),
+                                         ("elmo", None), ("csv", "quintic")])
+def test_a_net_stroke_cam_exports_where_the_format_can_carry_it(fmt, interp):
+    knife = parse_cam(KNIFE)
+    result = export_cam(knife, fmt, tolerance=0.01, interp=interp)
+    c = result.certificate
+    assert c.max_error_units <= c.predicted_error_units <= 0.01
+    assert any("net stroke +360 deg" in note for note in result.notes)
+    if fmt == "codesys":
+        rows = [line for line in result.content.splitlines() if "(dX := " in line]
+        assert "(dX := 0.0, dY := 0.0," in rows[0] and "(dX := 360.0, dY := 360.0," in rows[-1]
+    if fmt == "twincat-cnc":
+        assert any("EndlessPositive" in note for note in result.notes)
+    if fmt == "elmo":
+        lines = result.content.splitlines()
+        entries = [int(line.split("=")[1].rstrip(";")) for line in lines if line.startswith("ET[")]
+        assert entries[-1] - entries[0] == 360000
+    if fmt == "csv":
+        assert "net_stroke: 360.0" in result.content
+
+
+@pytest.mark.parametrize("fmt, reason", [("kollmorgen", "KAS"), ("technosoft", "EasyMotion Studio")])
+def test_a_net_stroke_cam_is_refused_with_the_reason_where_the_format_cannot(fmt, reason):
+    with pytest.raises(InputError) as info:
+        export_cam(parse_cam(KNIFE), fmt, tolerance=0.01)
+    message = str(info.value)
+    assert message.startswith(f"net stroke: +360 deg per period should be 0 for {fmt}: ") and reason in message
+    assert "use codesys, twincat-cnc, elmo or csv" in message
+
+
+def test_elmo_refuses_a_net_stroke_of_a_fractional_number_of_counts():
+    with pytest.raises(InputError, match="should be a whole number of counts for elmo"):
+        export_cam(parse_cam(KNIFE), "elmo", tolerance=0.01, slave_counts_per_unit=1000.0001)
+
+
+def test_a_non_periodic_cam_has_no_isg_table_but_the_others_export():
+    segment = Segment(0.0, 90.0, 0.0, 25.0, ecam.law("cycloidal"), "rise")
+    profile = CamProfile((segment,), 90.0, False, slave_unit="mm", table={"master_counts": 9000})
+    with pytest.raises(InputError, match="^periodic: false should be true for twincat-cnc"):
+        export_cam(profile, "twincat-cnc", points=40)
+    for fmt in ("codesys", "kollmorgen", "elmo", "technosoft", "csv"):
+        points = {"elmo": 91, "technosoft": 9001}.get(fmt, 20)
+        if fmt == "technosoft":
+            points = 9000 // 8 + 1
+        result = export_cam(profile, fmt, points=points)
+        assert result.certificate.max_error_units <= result.certificate.predicted_error_units
+    assert "CYCLIC;NO;" in export_cam(profile, "kollmorgen", points=20).content
+    assert "EM[1]=1;" in export_cam(profile, "elmo", points=91).content
+
+
+def test_every_format_documents_its_point_and_its_rule():
+    for name in VENDOR_FORMATS:
+        module = vendor_format(name)
+        assert module.NAME == name and module.LIMIT >= 2 and module.INTERPOLATIONS
+        assert module.__doc__ and len(module.__doc__) > 200
+
+
+def test_a_drum_turning_backwards_runs_endless_negative():
+    backwards = dict(KNIFE, segment=[dict(s, stroke=-s["stroke"]) for s in KNIFE["segment"]])
+    result = export_cam(parse_cam(backwards), "twincat-cnc", tolerance=0.01)
+    assert any("net stroke -360 deg" in note and "EndlessNegative" in note for note in result.notes)
+    assert result.certificate.max_error_units <= result.certificate.predicted_error_units <= 0.01
+
+
+def test_tiny_segments_next_to_huge_ones():
+    """A 1e-6-of-the-period dwell exports in every format; a rise over 1e-6 of the period has an
+    enormous acceleration and fails in one line instead of giving a bad table."""
+    period, tiny = 360.0, 360e-6
+    cyc = ecam.law("cycloidal")
+    table = {"master_counts": 2**16, "slave_counts_per_unit": 1000.0}
+    dwell = CamProfile((Segment(0, 180, 0, 10, cyc), Segment(180, 180 + tiny, 10, 10, ecam.law("constant_velocity")),
+                        Segment(180 + tiny, period, 10, 0, cyc)), period, True, slave_unit="mm", table=table)
+    for fmt, interp in COMBINATIONS:
+        c = export_cam(dwell, fmt, tolerance=0.01, interp=interp).certificate
+        assert math.isfinite(c.max_error_units) and c.max_error_units <= c.predicted_error_units <= 0.01
+    rise = CamProfile((Segment(0, tiny, 0, 1, cyc), Segment(tiny, period, 1, 0, cyc)), period, True,
+                      slave_unit="mm", table=table)
+    for fmt, interp in [("codesys", None), ("elmo", None), ("twincat-cnc", "linear")]:
+        with pytest.raises(TableFormatError, match="^tolerance: 0.002 mm .* should be at least .* within its limit"):
+            export_cam(rise, fmt, tolerance="2 counts", interp=interp)

@@ -2,20 +2,39 @@
 
 Motion laws -> cam profiles -> certified fixed-point cam tables. The math core imports no CAN and
 no plotting; ``ecam.plot`` and the ``hil_sim`` rig bring those in at the edges.
+
+A cam from Python, segment by segment (spans and strokes; positions add up from 0)::
+
+    import ecam
+    from ecam import CamProfile, Segment
+
+    cam = CamProfile.from_segments([
+        Segment.from_span(60.0),                                   # a dwell
+        Segment.from_span(120.0, 10.0, "modified_sine", "rise"),
+        Segment.from_span(60.0),
+        Segment.from_span(120.0, -10.0, "cycloidal", "return"),
+    ], name="knife")
+    cam.check().ok                  # continuity at every joint and at the seam
+    text = cam.to_toml()            # a cam file that ecam.parse_cam / ecam.load_cam read back equal
+    table = ecam.compile_table(cam, interp="cubic", points=361, master_counts=36000)
+
+Every bad value raises one line, ``<field>: <value> should be <expected>``, as an
+:class:`InputError` (a ``ValueError``); a cam file's errors are :class:`CamFileError` and name
+the file and its field.
 """
 
 from . import design, mechanics
 from .camfile import load_cam, parse_cam
 from .compile import compile_table
 from .errors import CamFileError, EcamError, InputError, SimulationError, TableFormatError
-from .laws import LAWS, Law, law, polynomial_from_boundary
+from .laws import DWELL, LAW_NAMES, LAWS, Law, law, polynomial_from_boundary
 from .profile import CamProfile, CheckReport, Discontinuity, Segment
 from .table import KINDS, CamTable, TableFormat
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "CamFileError", "CamProfile", "CamTable", "CheckReport", "Discontinuity", "EcamError", "InputError",
-    "KINDS", "LAWS", "Law", "Segment", "SimulationError", "TableFormat", "TableFormatError",
+    "CamFileError", "CamProfile", "CamTable", "CheckReport", "DWELL", "Discontinuity", "EcamError", "InputError",
+    "KINDS", "LAWS", "LAW_NAMES", "Law", "Segment", "SimulationError", "TableFormat", "TableFormatError",
     "compile_table", "design", "law", "load_cam", "mechanics", "parse_cam", "polynomial_from_boundary",
 ]

@@ -1,34 +1,45 @@
-"""Cam files (TOML) -> CamProfile. Every field is checked here, once, where it enters."""
+"""Cam files (TOML) -> CamProfile.
+
+The reader checks the file's shape here (field names, TOML types, which fields go together) with
+:mod:`ecam.validate`; every rule of the cam itself is checked once, by the Python API it hands the
+values to (:class:`~ecam.profile.Segment`, :class:`~ecam.profile.CamProfile`,
+:func:`~ecam.design.combination_segments`), whose messages it renames to the file's fields
+(``master_start`` -> ``start``, ``slave_end`` -> ``to``, ...). :meth:`CamProfile.to_toml` writes
+the format back.
+"""
 
 from __future__ import annotations
 
-import math
 import os
 import stat
 import tomllib
 from pathlib import Path
 
-from .compile import parse_tolerance
+from . import validate
 from .design import combination_segments
-from .errors import CamFileError, InputError
-from .laws import law as _law, polynomial_from_boundary
-from .profile import MAX_PERIOD, MIN_PERIOD, MIN_SPAN_FRACTION, CamProfile, Segment
+from .errors import CamFileError
+from .laws import LAW_NAMES, LAWS
+from .profile import BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_master_period, check_span
+from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
+from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
+from .validate import Fields, show
 
-__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_toml"]
+__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_toml", "show"]
 
 # The built-in cams (the seeds'), shipped with the package: a link to firmware_tables/cams in a
 # checkout, a copy in an installed wheel.
 CAMS_DIR = Path(__file__).resolve().parent / "cams"
 
 _TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "table", "segment"}
-_TABLE_KEYS = {"interp", "points", "tolerance", "master_counts", "slave_counts_per_unit"}
-_SEGMENT_KEYS = {
-    "name", "law", "combination", "accel_ratio", "span", "end", "start", "stroke", "to", "from",
-    "start_velocity", "end_velocity", "start_acceleration", "end_acceleration",
-    "start_jerk", "end_jerk",
-}
-_BOUNDARY_KEYS = ("velocity", "acceleration", "jerk")
-_POLYNOMIALS = {"poly5": 2, "poly7": 3}
+_BOUNDARY_FIELDS = tuple(f"{end}_{what}" for end in ("start", "end") for what in BOUNDARY_KEYS)
+_SEGMENT_KEYS = {"name", "law", "combination", "accel_ratio", "span", "end", "start", "stroke", "to", "from",
+                 *_BOUNDARY_FIELDS}
+_POLYNOMIALS = {"poly5": 5, "poly7": 7}
+# Every name a file's `law` may hold: the laws, the dwell, and the polynomials solved here.
+FILE_LAW_NAMES = (*LAW_NAMES, *_POLYNOMIALS)
+# The Python API's names for what a cam file calls start, end, from and to.
+_FILE_NAMES = {"master_start": "start", "master_end": "end", "slave_start": "from", "slave_end": "to",
+               "segments": "segment"}
 
 
 def load_cam(path) -> CamProfile:
@@ -93,236 +104,169 @@ def read_toml(path, what: str) -> dict:
 
 
 def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
-    """Build a profile from the parsed TOML mapping (see the README for the format)."""
-    _unknown(data, _TOP_KEYS, "")
-    period = _number(data, "master_period", required=True, positive=True)
-    if not MIN_PERIOD <= period <= MAX_PERIOD:
-        raise CamFileError(f"master_period: {period!r} should be in {MIN_PERIOD:g}..{MAX_PERIOD:g}")
-    periodic = _boolean(data, "periodic", default=True)
-    slave = _number(data, "start", default=0.0)
-    table = _table(data.get("table", {}))
-    raw_segments = data.get("segment")
+    """Build a profile from the parsed TOML mapping (see the README for the format).
+
+    Parameters
+    ----------
+    data : mapping
+        The parsed file.
+    source : str
+        The file, for messages (``cam <source>: <field>: ...``) and the default cam name.
+
+    Raises
+    ------
+    CamFileError
+        One line naming the field, the value and what was expected.
+    """
+    top = Fields(data, "", f"cam {source}", _TOP_KEYS)
+    if "master_period" not in top:
+        raise top.error("master_period: missing; expected a number")
+    with top.calling():
+        period = check_master_period(top.get("master_period"))
+    periodic = top.boolean("periodic", default=True)
+    slave_unit = top.string("slave_unit", default="mm")
+    table = _table(top, slave_unit)
+    raw_segments = top.get("segment")
     if raw_segments is None:
-        raise CamFileError("segment: missing; expected at least one [[segment]] table")
+        raise top.error("segment: missing; expected at least one [[segment]] table")
     if not isinstance(raw_segments, list) or not all(isinstance(s, dict) for s in raw_segments):
-        raise CamFileError(f"segment: {show(raw_segments)} should be an array of tables ([[segment]])")
-    if not raw_segments:
-        raise CamFileError("segment: [] should hold at least one segment")
+        raise top.error(f"segment: {show(raw_segments)} should be an array of tables ([[segment]])")
 
-    segments: list[Segment] = []
-    pending_polynomials = []
-    master = 0.0
+    # Segments in order; a poly5/poly7 waits (as its Fields and placement) for its neighbours.
+    entries: list = []
+    master, slave = 0.0, top.number("start", default=0.0)
     for i, raw in enumerate(raw_segments):
-        where = f"segment[{i}]"
-        _unknown(raw, _SEGMENT_KEYS, where + ".")
-        start = _number(raw, "start", where=where)
-        if start is not None and not math.isclose(start, master, rel_tol=0, abs_tol=1e-9 * period):
-            kind = "gap" if start > master else "overlap"
-            raise CamFileError(
-                f"{where}.start: {start!r} leaves a {kind}; the previous segment ends at {master!r}"
-            )
-        span = _number(raw, "span", where=where, positive=True)
-        end = _number(raw, "end", where=where)
-        if (span is None) == (end is None):
-            raise CamFileError(f"{where}: give exactly one of 'span' or 'end' (master units)")
-        if end is not None:
-            span = end - master
-            if not span > 0:
-                raise CamFileError(f"{where}.end: {end!r} should be > the segment start {master!r}")
-        if span < MIN_SPAN_FRACTION * period:
-            raise CamFileError(f"{where}.span: {span!r} should be >= {MIN_SPAN_FRACTION:g} of master_period "
-                               f"({MIN_SPAN_FRACTION * period:g})")
-        slave_from = _number(raw, "from", where=where)
-        if slave_from is not None:
-            slave = slave_from  # a deliberate position jump; check() reports it
-        stroke = _number(raw, "stroke", where=where)
-        to = _number(raw, "to", where=where)
-        if stroke is not None and to is not None:
-            raise CamFileError(f"{where}: give at most one of 'stroke' or 'to'")
-        if to is not None:
-            stroke = to - slave
-        if stroke is not None and not math.isfinite(stroke):
-            raise CamFileError(f"{where}: stroke {stroke!r} (from {slave!r} to {to!r}) should be finite")
-        name = raw.get("name", "")
-        if not isinstance(name, str):
-            raise CamFileError(f"{where}.name: {show(name)} should be a string")
-
-        has_law, has_combo = "law" in raw, "combination" in raw
-        if has_law == has_combo:
-            raise CamFileError(f"{where}: give exactly one of 'law' or 'combination'")
-        if has_combo:
-            laws = raw["combination"]
-            if not (isinstance(laws, list) and len(laws) == 2 and all(isinstance(x, str) for x in laws)):
-                raise CamFileError(f"{where}.combination: {show(laws)} should be a list of two law names")
-            ratio = _number(raw, "accel_ratio", where=where, required=True, positive=True)
-            if stroke is None or stroke == 0:
-                raise CamFileError(f"{where}.stroke: {show(stroke)} should be a non-zero number for a combination")
-            try:
-                pair = combination_segments(
-                    laws[0], laws[1], master_start=master, span=span, slave_start=slave,
-                    stroke=stroke, accel_ratio=ratio, name=name,
-                )
-            except InputError as exc:
-                raise CamFileError(f"{where}.combination: {exc}") from None
-            segments.extend(pair)
+        r = Fields(raw, f"segment[{i}]", top.source, _SEGMENT_KEYS)
+        if ("law" in r) == ("combination" in r):
+            raise r.error(f"{r.where}: give exactly one of 'law' or 'combination'")
+        law_name = r.choice("law", FILE_LAW_NAMES) if "law" in r else None
+        for key in _BOUNDARY_FIELDS:
+            if key in r and law_name not in _POLYNOMIALS:
+                raise r.error(f"{r.name(key)}: {show(r.get(key))} should be absent: only poly5/poly7 "
+                              "segments take boundary conditions")
+        if "accel_ratio" in r and law_name is not None:
+            raise r.error(f"{r.name('accel_ratio')}: {show(r.get('accel_ratio'))} should be absent: only a "
+                          "combination takes one")
+        placement, master, slave = _place(r, master, slave, period, dwell=law_name == "dwell")
+        if law_name is None:
+            entries.extend(_combination(r, placement))
+        elif law_name in _POLYNOMIALS:
+            entries.append((r, law_name, placement))
         else:
-            law_name = raw["law"]
-            if not isinstance(law_name, str):
-                raise CamFileError(f"{where}.law: {show(law_name)} should be a law name (string)")
-            if law_name == "dwell":
-                if stroke not in (None, 0, 0.0):
-                    raise CamFileError(f"{where}.stroke: {stroke!r} should be 0 or absent for a dwell")
-                stroke = 0.0
-                law_obj = _law("constant_velocity")
-                name = name or "dwell"
-            elif law_name in _POLYNOMIALS:
-                law_obj = None  # solved below, once its neighbours are known
-                pending_polynomials.append((len(segments), i, law_name, raw))
-            else:
-                try:
-                    law_obj = _law(law_name)
-                except InputError:
-                    raise CamFileError(
-                        f"{where}.law: {law_name!r} is unknown; expected 'dwell', 'poly5', 'poly7' "
-                        f"or one of ecam.LAWS (see `ecam laws`)"
-                    ) from None
-            for key in _boundary_keys():
-                if key in raw and law_name not in _POLYNOMIALS:
-                    raise CamFileError(f"{where}.{key}: only poly5/poly7 segments take boundary conditions")
-            if stroke is None:
-                raise CamFileError(f"{where}.stroke: missing; expected a number (slave units) or 'to'")
-            segments.append(Segment(master, master + span, slave, slave + stroke, law_obj, name))
-        master += span
-        slave += stroke
-
-    for index, i, law_name, raw in pending_polynomials:
-        segments[index] = _solve_polynomial(segments, index, i, law_name, raw, periodic)
-    try:
-        return CamProfile(
-            tuple(segments),
-            period,
-            periodic,
-            name=_string(data, "name", Path(source).stem),
-            master_unit=_string(data, "master_unit", "deg"),
-            slave_unit=_string(data, "slave_unit", "mm"),
-            table=table,
-        )
-    except InputError as exc:
-        raise CamFileError(str(exc)) from None
+            with r.calling(_file_name_in(r)):
+                entries.append(Segment(*placement, law_name, r.string("name", default="")))
+    segments = [_polynomial(entries, k, periodic) if isinstance(entry, tuple) else entry
+                for k, entry in enumerate(entries)]
+    with top.calling(_file_name):
+        return CamProfile(segments, period, periodic, name=top.get("name", Path(source).stem),
+                          master_unit=top.get("master_unit", "deg"), slave_unit=slave_unit, table=table)
 
 
-def _boundary_keys():
-    return [f"{end}_{what}" for end in ("start", "end") for what in _BOUNDARY_KEYS]
+def _file_name(field: str) -> str:
+    """A field of the Python API as the cam file calls it (``segment[2].master_start`` ->
+    ``segment[2].start``)."""
+    where, _, key = field.rpartition(".")
+    key = _FILE_NAMES.get(key, key)
+    return f"{where}.{key}" if where else key
 
 
-def _solve_polynomial(segments, index, i, law_name, raw, periodic):
-    """Solve a poly5/poly7 segment from its boundary conditions (user units), where the string
-    'match' takes the value of the neighbouring segment (VDI 2143 motion-to-motion)."""
-    where = f"segment[{i}]"
-    seg = segments[index]
-    if seg.stroke == 0:
-        raise CamFileError(f"{where}.stroke: 0 -- a {law_name} segment needs a non-zero stroke")
-    count = _POLYNOMIALS[law_name]
-    normalized = {}
+def _file_name_in(r: Fields):
+    """Renames a field of one segment; its slave start is the file's top-level ``start`` unless
+    the segment says ``from``."""
+    def rename(field: str) -> str:
+        if field == "slave_start" and "from" not in r:
+            return "start"
+        return _file_name(r.name(field))
+    return rename
+
+
+def _place(r: Fields, master: float, slave: float, period: float, dwell: bool):
+    """Where the segment of ``r`` runs: (master_start, master_end, slave_start, slave_end), and the
+    master and slave positions the next segment starts from. A written ``start`` or ``from`` is
+    taken as written (a gap, an overlap or a jump is for the profile to report), and so are
+    ``end`` and ``to``; ``span`` and ``stroke`` are added to the start."""
+    if ("span" in r) == ("end" in r):
+        raise r.error(f"{r.where}: give exactly one of 'span' or 'end' (master units)")
+    if "stroke" in r and "to" in r:
+        raise r.error(f"{r.where}: give at most one of 'stroke' or 'to'")
+    master_start = r.number("start", default=master)
+    slave_start = r.number("from", default=slave)
+    if "span" in r:
+        with r.calling(_file_name_in(r)):  # as written: a span lost in rounding is too small
+            span = check_span(r.number("span"), period, "span")
+        master_end = master_start + span
+    else:
+        master_end = r.number("end")
+    if "to" in r:
+        slave_end = r.number("to")
+    elif "stroke" in r:
+        slave_end = slave_start + r.number("stroke")
+    elif dwell:
+        slave_end = slave_start
+    else:
+        raise r.error(f"{r.name('stroke')}: missing; expected a number (slave units) or 'to'")
+    return (master_start, master_end, slave_start, slave_end), master_end, slave_end
+
+
+def _combination(r: Fields, placement) -> tuple[Segment, Segment]:
+    """The two solved segments of a ``combination = [first, second]`` segment."""
+    laws = r.get("combination")
+    if not (isinstance(laws, list) and len(laws) == 2 and all(isinstance(x, str) for x in laws)):
+        raise r.error(f"{r.name('combination')}: {show(laws)} should be a list of two law names")
+    with r.calling():
+        for k, name in enumerate(laws):
+            validate.choice(f"combination[{k}]", name, sorted(LAWS))
+    if "accel_ratio" not in r:
+        raise r.error(f"{r.name('accel_ratio')}: missing; expected a number (peak |acceleration| of the "
+                      "first law over that of the second)")
+    ratio = r.get("accel_ratio")  # checked by combination_segments
+    master_start, master_end, slave_start, slave_end = placement
+    with r.calling(_file_name_in(r)):
+        return combination_segments(laws[0], laws[1], master_start=master_start, span=master_end - master_start,
+                                    slave_start=slave_start, stroke=slave_end - slave_start, accel_ratio=ratio,
+                                    name=r.string("name", default=""))
+
+
+def _polynomial(entries: list, k: int, periodic: bool) -> Segment:
+    """Solve the poly5/poly7 entry ``k`` from its boundary conditions (user units), where the
+    string 'match' takes the value of the neighbouring segment (VDI 2143 motion-to-motion)."""
+    r, law_name, placement = entries[k]
+    degree = _POLYNOMIALS[law_name]
+    conditions = {}
     for end in ("start", "end"):
-        values = []
-        for order, what in enumerate(_BOUNDARY_KEYS[:count], start=1):
+        for order, what in enumerate(BOUNDARY_KEYS[: 2 if degree == 5 else 3], start=1):
             key = f"{end}_{what}"
-            value = raw.get(key, 0.0)
-            if value == "match":
-                neighbour_index = index - 1 if end == "start" else index + 1
+            if r.get(key) == "match":
+                index = k - 1 if end == "start" else k + 1
                 if periodic:
-                    neighbour_index %= len(segments)
-                if not 0 <= neighbour_index < len(segments) or segments[neighbour_index].law is None:
-                    raise CamFileError(f"{where}.{key}: 'match' needs a neighbouring segment with a fixed law")
-                neighbour = segments[neighbour_index]
-                value = neighbour.at(1.0 if end == "start" else 0.0, order)
-            else:
-                value = _number(raw, key, where=where, default=0.0)
-            # user units -> normalized: d^k s/du^k = (d^k y/dx^k) * span^k / stroke
-            try:
-                normal = value * seg.span**order / seg.stroke
-            except OverflowError:
-                normal = math.inf
-            if not math.isfinite(normal):
-                raise CamFileError(f"{where}.{key}: {value!r} over a span of {seg.span!r} and a stroke of "
-                                   f"{seg.stroke!r} should give a finite normalized value")
-            values.append(normal)
-        normalized[end] = values
-        for key in (f"{end}_jerk",) if count == 2 else ():
-            if key in raw:
-                raise CamFileError(f"{where}.{key}: poly5 takes no jerk; use poly7")
-    try:
-        law_obj = polynomial_from_boundary(normalized["start"], normalized["end"], name=law_name)
-    except InputError as exc:
-        raise CamFileError(f"{where}: {exc}") from None
-    return Segment(seg.master_start, seg.master_end, seg.slave_start, seg.slave_end, law_obj, seg.name)
+                    index %= len(entries)
+                if not 0 <= index < len(entries) or isinstance(entries[index], tuple):
+                    raise r.error(f"{r.name(key)}: 'match' should have a neighbouring segment with a fixed law")
+                conditions[key] = entries[index].at(1.0 if end == "start" else 0.0, order)
+            elif key in r:
+                conditions[key] = r.number(key)
+        if degree == 5 and f"{end}_jerk" in r:
+            conditions[f"{end}_jerk"] = r.get(f"{end}_jerk")  # refused by Segment.polynomial
+    with r.calling(_file_name_in(r)):
+        return Segment.polynomial(*placement, degree=degree, name=r.string("name", default=""), **conditions)
 
 
-def _table(raw) -> dict:
-    if not isinstance(raw, dict):
-        raise CamFileError(f"table: {show(raw)} should be a table ([table])")
-    _unknown(raw, _TABLE_KEYS, "table.")
+def _table(top: Fields, slave_unit: str) -> dict:
+    """The ``[table]`` settings, checked in type and range (TableSpec checks them again, with
+    the command line's settings over them, when a table is compiled)."""
+    t = top.table("table", allowed=TABLE_KEYS)
     out = {}
-    if "interp" in raw:
-        if raw["interp"] not in ("linear", "cubic", "quintic", "auto"):
-            raise CamFileError(f"table.interp: {show(raw['interp'])} should be one of linear, cubic, quintic, auto")
-        out["interp"] = raw["interp"]
-    for key in ("points", "master_counts"):
-        if key in raw:
-            value = raw[key]
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise CamFileError(f"table.{key}: {show(value)} should be an integer")
-            out[key] = value
-    if "tolerance" in raw:
-        try:
-            parse_tolerance(raw["tolerance"])
-        except InputError as exc:
-            raise CamFileError(f"table.{exc}") from None
-        out["tolerance"] = raw["tolerance"]
-    if "slave_counts_per_unit" in raw:
-        out["slave_counts_per_unit"] = _number(raw, "slave_counts_per_unit", where="table", positive=True)
+    if "interp" in t:
+        out["interp"] = t.choice("interp", INTERPOLATIONS)
+    if "points" in t:
+        out["points"] = t.integer("points", minimum=2, maximum=MAX_POINTS)
+    if "master_counts" in t:
+        out["master_counts"] = t.integer("master_counts", minimum=2, maximum=MAX_MASTER_COUNTS)
+    if "slave_counts_per_unit" in t:
+        out["slave_counts_per_unit"] = t.number("slave_counts_per_unit", minimum=MIN_COUNTS_PER_UNIT,
+                                                maximum=MAX_COUNTS_PER_UNIT)
+    if "tolerance" in t:
+        with t.calling(lambda field: field):
+            parse_tolerance(t.get("tolerance"), t.name("tolerance"), slave_unit)
+        out["tolerance"] = t.get("tolerance")
     return out
-
-
-def _number(raw, key, *, where="", required=False, positive=False, default=None):
-    prefix = f"{where}.{key}" if where else key
-    if key not in raw:
-        if required:
-            raise CamFileError(f"{prefix}: missing; expected a number")
-        return default
-    value = raw[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CamFileError(f"{prefix}: {show(value)} should be a number")
-    value = float(value)
-    if not math.isfinite(value):
-        raise CamFileError(f"{prefix}: {value!r} should be finite")
-    if positive and not value > 0:
-        raise CamFileError(f"{prefix}: {value!r} should be > 0")
-    return value
-
-
-def _boolean(raw, key, default):
-    value = raw.get(key, default)
-    if not isinstance(value, bool):
-        raise CamFileError(f"{key}: {show(value)} should be true or false")
-    return value
-
-
-def _string(raw, key, default):
-    value = raw.get(key, default)
-    if not isinstance(value, str):
-        raise CamFileError(f"{key}: {show(value)} should be a string")
-    return value
-
-
-def _unknown(raw, allowed, prefix):
-    for key in raw:
-        if key not in allowed:
-            raise CamFileError(f"{prefix}{key}: unknown field; expected one of {', '.join(sorted(allowed))}")
-
-
-def show(value) -> str:
-    """A value for a one-line error message: its repr, cut to 60 characters."""
-    text = repr(value)
-    return text if len(text) < 60 else text[:57] + "..."

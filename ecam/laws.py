@@ -11,6 +11,10 @@ velocity) are integrated here from that acceleration, so their coefficients are 
 than typed in. Characteristic values ``cv``, ``ca``, ``cj`` (peaks of |s'|, |s''|, |s'''|) are
 measured from the law itself; ``math.inf`` marks an unbounded value (an impulse inside the law,
 or a jump against the rest it starts or ends in).
+
+The dwell (:data:`DWELL`, ``law("dwell")``) is the one law that does not rise: s(u) = 0, for
+segments of zero stroke. It is accepted wherever a law is, but it is not in :data:`LAWS`, the
+registry of rise laws.
 """
 
 from __future__ import annotations
@@ -20,11 +24,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
+from . import validate
 
-__all__ = ["Law", "LAWS", "law", "polynomial_from_boundary"]
+__all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "law", "polynomial_from_boundary"]
 
 _PI = math.pi
+SIDES = ("right", "left")
 
 
 @dataclass(frozen=True)
@@ -69,7 +74,8 @@ class Piece:
 
 @dataclass(frozen=True)
 class Law:
-    """A normalized rise law, callable as ``law(u, order=0)``.
+    """A normalized rise law, callable as ``law(u, order=0)``: s(0) = 0, s(1) = 1 (the dwell,
+    s = 0, is the one exception).
 
     Parameters
     ----------
@@ -109,9 +115,14 @@ class Law:
             Derivative order, 0 or more (d^order s / du^order).
         side : {'right', 'left'}
             Which one-sided limit to take at an inner break of the law.
+
+        Raises
+        ------
+        InputError
+            ``order`` is not an integer >= 0, or ``side`` is neither 'right' nor 'left'.
         """
-        if not isinstance(order, (int, np.integer)) or order < 0:
-            raise InputError(f"order {order!r} should be an integer >= 0")
+        order = validate.integer("order", int(order) if isinstance(order, np.integer) else order, minimum=0)
+        validate.choice("side", side, SIDES)
         scalar = np.ndim(u) == 0
         u = np.asarray(u, dtype=float)
         index = np.searchsorted(self._breaks, u, side="right" if side == "right" else "left")
@@ -330,14 +341,30 @@ def _build_laws() -> dict[str, Law]:
 
 LAWS: dict[str, Law] = _build_laws()
 
+DWELL = Law("dwell", (Piece(0.0, 1.0),), description="dwell: the slave holds, s = 0 (zero stroke)")
 
-def law(name: str) -> Law:
-    """The law called ``name``; see :data:`LAWS` for the names."""
-    try:
-        return LAWS[name]
-    except (KeyError, TypeError):
-        known = ", ".join(sorted(LAWS))
-        raise InputError(f"law {name!r} is unknown; expected one of: {known}") from None
+# Every name law() accepts: the rise laws and the dwell.
+LAW_NAMES: tuple[str, ...] = tuple(sorted([*LAWS, DWELL.name]))
+
+
+def law(name) -> Law:
+    """The law called ``name``: one of :data:`LAWS` or ``"dwell"`` (:data:`DWELL`).
+
+    Parameters
+    ----------
+    name : str or Law
+        A law name (see :data:`LAW_NAMES`); a :class:`Law` is returned as it is.
+
+    Raises
+    ------
+    InputError
+        ``law: <name> should be one of ...`` for an unknown name.
+    """
+    if isinstance(name, Law):
+        return name
+    if name == DWELL.name:
+        return DWELL
+    return LAWS[validate.choice("law", name, LAW_NAMES)]
 
 
 def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
@@ -353,16 +380,18 @@ def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
     -------
     Law
         The unique polynomial of degree 2k+1 (k = len(start)) meeting the conditions.
+
+    Raises
+    ------
+    InputError
+        ``start`` does not hold 2 or 3 values, ``end`` not as many, or a value is not a finite
+        number.
     """
-    start, end = tuple(float(v) for v in start), tuple(float(v) for v in end)
-    if len(start) != len(end) or len(start) not in (2, 3):
-        raise InputError(
-            f"boundary conditions {start!r}/{end!r} should both give 2 values (5th order) "
-            "or 3 values (7th order)"
-        )
-    for v in start + end:
-        if not math.isfinite(v):
-            raise InputError(f"boundary condition {v!r} should be finite")
+    start, end = _conditions("start", start), _conditions("end", end)
+    if len(start) not in (2, 3):
+        raise validate.fail("start", start, "2 values (5th order) or 3 values (7th order)")
+    if len(end) != len(start):
+        raise validate.fail("end", end, f"{len(start)} values, as many as start")
     k = len(start)
     degree = 2 * k + 1
     rows, rhs = [], []
@@ -384,3 +413,10 @@ def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
         rest_end,
         f"{degree}th-order polynomial from boundary conditions",
     )
+
+
+def _conditions(field: str, values) -> tuple[float, ...]:
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__"):
+        raise validate.fail(field, values, "a sequence of 2 or 3 numbers")
+    return tuple(validate.number(f"{field}[{i}]", v.item() if isinstance(v, np.generic) else v)
+                 for i, v in enumerate(values))

@@ -1,22 +1,59 @@
-"""Cam profiles: segments of motion laws over one master period, in user units."""
+"""Cam profiles: segments of motion laws over one master period, in user units.
+
+Every rule a cam must obey is checked here, once, where the Python API builds it: a
+:class:`Segment` checks its own numbers, law and span, a :class:`CamProfile` the chain (no gap,
+no overlap, spans against the period). The cam-file reader (:mod:`ecam.camfile`) maps its
+fields onto these and renames the fields in the messages.
+"""
 
 from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import validate
 from .errors import InputError
-from .laws import Law, law as _law
+from .laws import DWELL, LAWS, SIDES, Law, law as _law, polynomial_from_boundary
 
-__all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES"]
+__all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES", "check_span",
+           "check_master_period"]
 
 ORDER_NAMES = ("position", "velocity", "acceleration", "jerk")
 MIN_PERIOD, MAX_PERIOD = 1e-9, 1e12  # master units
 MIN_SPAN_FRACTION = 1e-9  # of the master period; 1e-6 (a hard case) is well inside
 MAX_SLAVE = 1e15  # slave units
+# Boundary conditions of a polynomial segment, in the order they are solved for (user units:
+# slave units per master unit^k); the names are the cam file's and Segment.polynomial's.
+BOUNDARY_KEYS = ("velocity", "acceleration", "jerk")
+
+
+def check_master_period(value, field: str = "master_period") -> float:
+    """A master period: a number in ``MIN_PERIOD..MAX_PERIOD`` (master units)."""
+    return validate.number(field, _plain(value), minimum=MIN_PERIOD, maximum=MAX_PERIOD)
+
+
+def check_span(span, master_period: float | None = None, field: str = "span") -> float:
+    """A segment's span: > 0 and, when the period is known, at least ``MIN_SPAN_FRACTION`` of it
+    (derivatives up to the 7th divide by span**7: keep that far from under- and overflow).
+
+    The one rule for spans: :class:`Segment` and :class:`CamProfile` use it, and so does the cam
+    file reader on the span as written, before a span too small to move its start position is
+    lost in rounding.
+    """
+    span = validate.positive(field, _plain(span))
+    if master_period is not None and span < MIN_SPAN_FRACTION * master_period:
+        raise validate.fail(field, span, f">= {MIN_SPAN_FRACTION:g} of master_period "
+                            f"({MIN_SPAN_FRACTION * master_period:g})")
+    return span
+
+
+def _plain(value):
+    """A numpy scalar as the Python number it holds (validate checks Python types)."""
+    return value.item() if isinstance(value, np.generic) else value
 
 
 @dataclass(frozen=True)
@@ -24,7 +61,34 @@ class Segment:
     """A law scaled to a master span and a slave stroke.
 
     ``y(x) = slave_start + (slave_end - slave_start) * law((x - master_start) / span)``.
-    A dwell is a segment with zero stroke.
+    A dwell is a segment with zero stroke (law ``"dwell"``, or any law).
+
+    Parameters
+    ----------
+    master_start, master_end : float
+        Where the segment starts and ends, in master units; ``master_end > master_start``.
+    slave_start, slave_end : float
+        Slave position at the start and at the end, in slave units, within +-1e15.
+    law : Law or str
+        The normalized law, or its name (``"dwell"`` included, see :func:`ecam.law`). A dwell
+        must have ``slave_end == slave_start``.
+    name : str
+        For reports and plots; the law's name when empty.
+    boundary : tuple, optional
+        Set by :meth:`polynomial`: the boundary conditions, in user units, the polynomial law
+        was solved from, ``((start velocity, acceleration[, jerk]), (end ...))``; kept so that
+        :meth:`CamProfile.to_toml` writes the segment back exactly. None for other laws.
+
+    Raises
+    ------
+    InputError
+        A field is not a finite number, the span is not > 0, the law is unknown, or a dwell
+        has a stroke: ``<field>: <value> should be <expected>``.
+
+    See Also
+    --------
+    from_span : a segment from its span and stroke, for :meth:`CamProfile.from_segments`.
+    polynomial : a 5th/7th-order segment from boundary conditions (VDI 2143).
     """
 
     master_start: float
@@ -33,6 +97,157 @@ class Segment:
     slave_end: float
     law: Law
     name: str = ""
+    boundary: tuple | None = None
+
+    def __post_init__(self):
+        for name in ("master_start", "master_end"):
+            object.__setattr__(self, name, validate.number(name, _plain(getattr(self, name))))
+        for name in ("slave_start", "slave_end"):
+            object.__setattr__(self, name, validate.number(name, _plain(getattr(self, name)),
+                                                           minimum=-MAX_SLAVE, maximum=MAX_SLAVE))
+        check_span(self.span)
+        object.__setattr__(self, "law", _law(self.law))
+        validate.string("name", self.name)
+        if self.law == DWELL and self.stroke != 0:
+            raise validate.fail("stroke", self.stroke, "0 for a dwell (or give a law that moves)")
+        if self.boundary is not None:
+            self._check_boundary()
+
+    def _check_boundary(self):
+        shape = "((start velocity, acceleration[, jerk]), (end velocity, acceleration[, jerk]))"
+        boundary = self.boundary
+        if not (isinstance(boundary, tuple) and len(boundary) == 2
+                and all(isinstance(side, tuple) and len(side) in (2, 3) for side in boundary)
+                and len(boundary[0]) == len(boundary[1])):
+            raise validate.fail("boundary", boundary, shape)
+        for end, values in zip(("start", "end"), boundary):
+            for key, value in zip(BOUNDARY_KEYS, values):
+                validate.number(f"{end}_{key}", value)
+        expected = f"poly{2 * len(boundary[0]) + 1}"
+        if self.law.name != expected:
+            raise validate.fail("law", self.law.name, f"{expected!r}, the polynomial solved from boundary")
+
+    @classmethod
+    def from_span(cls, span, stroke=0.0, law="dwell", name: str = "", *, master_start=0.0,
+                  slave_start=0.0) -> "Segment":
+        """A segment given by its span and stroke rather than by its end positions.
+
+        Parameters
+        ----------
+        span : float
+            Master span, > 0 (master units).
+        stroke : float
+            Slave stroke (slave units); negative for a return, 0 for a dwell.
+        law : Law or str
+            The law, or its name; the default, ``"dwell"``, holds the slave (stroke 0).
+        name : str
+            For reports and plots.
+        master_start, slave_start : float
+            Where it starts. :meth:`CamProfile.from_segments` places segments one after
+            another, so the defaults (0) serve there.
+
+        Returns
+        -------
+        Segment
+            ``Segment(master_start, master_start + span, slave_start, slave_start + stroke, ...)``.
+
+        Examples
+        --------
+        >>> rise = Segment.from_span(180.0, 50.0, "modified_sine", "rise")
+        >>> (rise.master_end, rise.slave_end)
+        (180.0, 50.0)
+        """
+        span = check_span(span)
+        stroke = validate.number("stroke", _plain(stroke))
+        master_start = validate.number("master_start", _plain(master_start))
+        slave_start = validate.number("slave_start", _plain(slave_start))
+        return cls(master_start, master_start + span, slave_start, slave_start + stroke, law, name)
+
+    @classmethod
+    def polynomial(cls, master_start, master_end, slave_start, slave_end, *, degree: int | None = None,
+                   start_velocity=0.0, start_acceleration=0.0, start_jerk=None,
+                   end_velocity=0.0, end_acceleration=0.0, end_jerk=None, name: str = "") -> "Segment":
+        """A 5th- or 7th-order polynomial segment solved from its boundary conditions (VDI 2143
+        motion-to-motion transitions), in user units.
+
+        Parameters
+        ----------
+        master_start, master_end, slave_start, slave_end : float
+            As for :class:`Segment`; the stroke must not be 0.
+        degree : {5, 7}, optional
+            5 matches velocity and acceleration at both ends, 7 jerk as well. Default: 7 when a
+            jerk is given, else 5.
+        start_velocity, end_velocity : float
+            Slave units per master unit.
+        start_acceleration, end_acceleration : float
+            Slave units per master unit^2.
+        start_jerk, end_jerk : float, optional
+            Slave units per master unit^3; degree 7 only (default 0 there).
+        name : str
+
+        Returns
+        -------
+        Segment
+            Its law is named ``"poly5"`` or ``"poly7"``; ``boundary`` keeps the conditions.
+
+        Raises
+        ------
+        InputError
+            A zero stroke, a jerk for degree 5, or a condition that is not finite once
+            normalized (``value * span**k / stroke``).
+        """
+        jerks = (start_jerk, end_jerk)
+        if degree is None:
+            degree = 5 if jerks == (None, None) else 7
+        if isinstance(degree, bool) or _plain(degree) not in (5, 7):
+            raise validate.fail("degree", degree, "5 or 7")
+        if degree == 5:
+            for end, jerk in zip(("start", "end"), jerks):
+                if jerk is not None:
+                    raise validate.fail(f"{end}_jerk", jerk, "absent for a 5th-order polynomial (poly5); "
+                                        "use degree 7 (poly7)")
+        count = 2 if degree == 5 else 3
+        given = {"start": (start_velocity, start_acceleration, start_jerk),
+                 "end": (end_velocity, end_acceleration, end_jerk)}
+        boundary = tuple(
+            tuple(validate.number(f"{end}_{key}", 0.0 if value is None else _plain(value))
+                  for key, value in zip(BOUNDARY_KEYS[:count], given[end]))
+            for end in ("start", "end"))
+        # The positions and the name, checked as for any segment (constant velocity takes any
+        # stroke); the law is solved from them.
+        shape = cls(master_start, master_end, slave_start, slave_end, LAWS["constant_velocity"], name)
+        span, stroke = shape.span, shape.stroke
+        if stroke == 0:
+            raise validate.fail("stroke", stroke, f"non-zero for a polynomial segment (poly{degree})")
+        normalized = []
+        for end, values in zip(("start", "end"), boundary):
+            side = []
+            for order, (key, value) in enumerate(zip(BOUNDARY_KEYS, values), start=1):
+                # user units -> normalized: d^k s/du^k = (d^k y/dx^k) * span^k / stroke
+                try:
+                    normal = value * span**order / stroke
+                except OverflowError:
+                    normal = math.inf
+                if not (math.isfinite(normal) and abs(normal) <= validate.MAX_MAGNITUDE):
+                    raise validate.fail(f"{end}_{key}", value,
+                                        f"finite and at most {validate.MAX_MAGNITUDE:g} once normalized "
+                                        f"(value * span^{order} / stroke; span {validate.show(span)}, "
+                                        f"stroke {validate.show(stroke)})")
+                side.append(normal)
+            normalized.append(side)
+        solved = polynomial_from_boundary(normalized[0], normalized[1], name=f"poly{degree}")
+        return replace(shape, law=solved, boundary=boundary)
+
+    def placed_at(self, master_start: float, slave_start: float) -> "Segment":
+        """The same span, stroke, law and name, starting at ``master_start``/``slave_start``."""
+        master_end, slave_end = master_start + self.span, slave_start + self.stroke
+        if self.boundary is None:
+            return replace(self, master_start=master_start, master_end=master_end, slave_start=slave_start,
+                           slave_end=slave_end)
+        conditions = {f"{end}_{key}": value for end, values in zip(("start", "end"), self.boundary)
+                      for key, value in zip(BOUNDARY_KEYS, values)}
+        return Segment.polynomial(master_start, master_end, slave_start, slave_end, name=self.name,
+                                  degree=2 * len(self.boundary[0]) + 1, **conditions)
 
     @property
     def span(self) -> float:
@@ -129,10 +344,11 @@ class CamProfile:
 
     Parameters
     ----------
-    segments : tuple of Segment
-        Contiguous segments from master 0 to ``master_period``.
+    segments : sequence of Segment
+        Contiguous segments from master 0 to ``master_period`` (kept as a tuple). To give spans
+        and strokes instead of positions, see :meth:`from_segments`.
     master_period : float
-        Length of one cycle in master units (e.g. 360 degrees).
+        Length of one cycle in master units (e.g. 360 degrees), 1e-9..1e12.
     periodic : bool
         Whether the cam repeats: master positions wrap modulo the period. A non-periodic cam is
         defined on [0, master_period] only.
@@ -141,6 +357,18 @@ class CamProfile:
     table : dict
         Default table format for the compiler (interp, points or tolerance, master_counts,
         slave_counts_per_unit), from the cam file's ``[table]`` section.
+
+    Raises
+    ------
+    InputError
+        ``<field>: <value> should be <expected>``: a segment that does not start where the one
+        before it ends (``segment[2].master_start: 170 should be 180, where segment[1] ends (it
+        leaves an overlap)``), a span below 1e-9 of the period, segments that do not end at the
+        period, or a field of the wrong type.
+
+    See Also
+    --------
+    ecam.load_cam, ecam.parse_cam : a profile from a cam file; :meth:`to_toml` writes one.
     """
 
     segments: tuple[Segment, ...]
@@ -152,36 +380,147 @@ class CamProfile:
     table: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if not self.segments:
-            raise InputError("segments [] should hold at least one segment")
-        if not (math.isfinite(self.master_period) and MIN_PERIOD <= self.master_period <= MAX_PERIOD):
-            raise InputError(f"master_period {self.master_period!r} should be in {MIN_PERIOD:g}..{MAX_PERIOD:g}")
+        segments = self.segments
+        if isinstance(segments, (str, bytes, Mapping)) or not hasattr(segments, "__iter__"):
+            raise validate.fail("segments", segments, "a sequence of Segment")
+        segments = tuple(segments)
+        if not segments:
+            raise validate.fail("segments", segments, "at least one Segment")
+        for i, seg in enumerate(segments):
+            if not isinstance(seg, Segment):
+                raise validate.fail(f"segment[{i}]", seg, "a Segment")
+        object.__setattr__(self, "segments", segments)
+        period = check_master_period(self.master_period)
+        object.__setattr__(self, "master_period", period)
+        validate.boolean("periodic", self.periodic)
+        for name in ("name", "master_unit", "slave_unit"):
+            validate.string(name, getattr(self, name))
+        if not isinstance(self.table, Mapping):
+            raise validate.fail("table", self.table, "a mapping of table settings (interp, points, ...)")
+        object.__setattr__(self, "table", dict(self.table))
         position = 0.0
-        for i, seg in enumerate(self.segments):
-            if not math.isclose(seg.master_start, position, rel_tol=0, abs_tol=1e-9 * self.master_period):
-                kind = "gap" if seg.master_start > position else "overlap"
-                raise InputError(
-                    f"segment[{i}].start {seg.master_start!r} leaves a {kind}: "
-                    f"the previous segment ends at {position!r}"
-                )
-            if not seg.span > 0:
-                raise InputError(f"segment[{i}].span {seg.span!r} should be > 0")
-            # derivatives up to the 7th divide by span**7: keep that far from under/overflow
-            if seg.span < MIN_SPAN_FRACTION * self.master_period:
-                raise InputError(f"segment[{i}].span {seg.span!r} should be >= {MIN_SPAN_FRACTION:g} of "
-                                 f"master_period ({MIN_SPAN_FRACTION * self.master_period:g})")
-            for name, value in (("from", seg.slave_start), ("to", seg.slave_end)):
-                if not (math.isfinite(value) and abs(value) <= MAX_SLAVE):
-                    raise InputError(f"segment[{i}] slave position ({name}) {value!r} should be finite "
-                                     f"and within +-{MAX_SLAVE:g}")
+        for i, seg in enumerate(segments):
+            if not math.isclose(seg.master_start, position, rel_tol=0, abs_tol=1e-9 * period):
+                kind = "a gap" if seg.master_start > position else "an overlap"
+                where = f"where segment[{i - 1}] ends" if i else "the start of the period"
+                raise validate.fail(f"segment[{i}].master_start", seg.master_start,
+                                    f"{validate.show(position)}, {where} (it leaves {kind})")
+            check_span(seg.span, period, f"segment[{i}].span")
             position = seg.master_end
-        if not math.isclose(position, self.master_period, rel_tol=1e-12):
-            kind = "gap" if position < self.master_period else "overlap"
-            raise InputError(
-                f"segments end at {position!r}, which leaves a {kind} against "
-                f"master_period {self.master_period!r}"
-            )
-        object.__setattr__(self, "_starts", np.array([s.master_start for s in self.segments]))
+        if not math.isclose(position, period, rel_tol=1e-12):
+            kind = "a gap" if position < period else "an overlap"
+            raise validate.fail(f"segment[{len(segments) - 1}].master_end", position,
+                                f"{validate.show(period)}, the master_period (it leaves {kind})")
+        object.__setattr__(self, "_starts", np.array([s.master_start for s in segments]))
+
+    @classmethod
+    def from_segments(cls, segments, master_period=None, *, start=0.0, periodic: bool = True, name: str = "",
+                      master_unit: str = "deg", slave_unit: str = "mm", table=None) -> "CamProfile":
+        """A profile from segments placed one after another, from master 0 and slave ``start``.
+
+        Each segment keeps its span, stroke, law and name; where it was placed is ignored.
+        A polynomial segment (:meth:`Segment.polynomial`) is solved again where it lands, so its
+        boundary conditions hold in user units.
+
+        Parameters
+        ----------
+        segments : sequence of Segment
+            Typically :meth:`Segment.from_span` segments.
+        master_period : float, optional
+            Master units; default: the sum of the spans. When given, the spans must add up to it.
+        start : float
+            Slave position at master 0 (slave units).
+        periodic, name, master_unit, slave_unit, table
+            As for :class:`CamProfile`.
+
+        Examples
+        --------
+        >>> cam = CamProfile.from_segments([
+        ...     Segment.from_span(60.0),                                   # dwell
+        ...     Segment.from_span(120.0, 10.0, "modified_sine", "rise"),
+        ...     Segment.from_span(60.0),
+        ...     Segment.from_span(120.0, -10.0, "cycloidal", "return"),
+        ... ])
+        >>> cam.master_period, cam(180.0)
+        (360.0, 10.0)
+        """
+        if isinstance(segments, (str, bytes, Mapping)) or not hasattr(segments, "__iter__"):
+            raise validate.fail("segments", segments, "a sequence of Segment")
+        master = 0.0
+        slave = validate.number("start", _plain(start))  # its range is the first segment's to check
+        placed = []
+        for i, seg in enumerate(segments):
+            if not isinstance(seg, Segment):
+                raise validate.fail(f"segment[{i}]", seg, "a Segment")
+            try:
+                placed.append(seg.placed_at(master, slave))
+            except InputError as exc:
+                raise validate.renamed(exc, lambda f: f"segment[{i}].{f}") from None
+            master, slave = placed[-1].master_end, placed[-1].slave_end
+        return cls(tuple(placed), master if master_period is None else master_period, periodic, name=name,
+                   master_unit=master_unit, slave_unit=slave_unit, table={} if table is None else table)
+
+    def to_toml(self) -> str:
+        """The profile as cam-file text (TOML), which :func:`ecam.load_cam` and
+        :func:`ecam.parse_cam` read back to an equal profile.
+
+        Every float is written with ``repr``, which reads back to the same float; a segment is
+        written by ``span``/``stroke`` where adding them to its start gives its end exactly, else
+        by ``end``/``to``, and ``start``/``from`` only where it does not begin where the one before
+        it ended. A combination is written as its two solved segments; a polynomial segment as
+        ``poly5``/``poly7`` with the boundary conditions it was solved from. The output depends
+        on nothing but the profile.
+
+        Returns
+        -------
+        str
+
+        Raises
+        ------
+        InputError
+            A segment's law has no name a cam file knows (a law built by hand, or
+            :func:`~ecam.laws.polynomial_from_boundary` outside :meth:`Segment.polynomial`),
+            or a name or table setting cannot be written as TOML.
+        """
+        lines = [f"name = {_toml_value('name', self.name)}",
+                 f"master_unit = {_toml_value('master_unit', self.master_unit)}",
+                 f"slave_unit = {_toml_value('slave_unit', self.slave_unit)}",
+                 f"master_period = {_toml_value('master_period', self.master_period)}",
+                 f"periodic = {_toml_value('periodic', self.periodic)}",
+                 f"start = {_toml_value('start', self.segments[0].slave_start)}"]
+        if self.table:
+            lines += ["", "[table]"]
+            for key in sorted(self.table):
+                if not (isinstance(key, str) and key in TABLE_KEYS):
+                    raise validate.fail("table", key, f"a table setting ({', '.join(TABLE_KEYS)})")
+                value = self.table[key]
+                if key == "slave_counts_per_unit" and isinstance(value, int) and not isinstance(value, bool):
+                    value = float(value)  # read back as a float: write it as one, for the same text
+                lines.append(f"{key} = {_toml_value(f'table.{key}', value)}")
+        master, slave = 0.0, self.segments[0].slave_start
+        for i, seg in enumerate(self.segments):
+            lines += ["", "[[segment]]"]
+            if seg.name:
+                lines.append(f"name = {_toml_value(f'segment[{i}].name', seg.name)}")
+            lines.append(f"law = {_toml_value(f'segment[{i}].law', _law_name(i, seg))}")
+            if seg.master_start != master:
+                lines.append(f"start = {seg.master_start!r}")
+            if seg.master_start + seg.span == seg.master_end:
+                lines.append(f"span = {seg.span!r}")
+            else:
+                lines.append(f"end = {seg.master_end!r}")
+            if seg.slave_start != slave:
+                lines.append(f"from = {seg.slave_start!r}")
+            if seg.law != DWELL:
+                if seg.slave_start + seg.stroke == seg.slave_end:
+                    lines.append(f"stroke = {seg.stroke!r}")
+                else:
+                    lines.append(f"to = {seg.slave_end!r}")
+            for end, values in zip(("start", "end"), seg.boundary or ()):
+                for key, value in zip(BOUNDARY_KEYS, values):
+                    lines.append(f"{end}_{key} = {value!r}")
+            master, slave = seg.master_end, seg.slave_end
+        return "\n".join(lines) + "\n"
 
     # evaluation --------------------------------------------------------------------------
     def __call__(self, master, order: int = 0, side: str = "right"):
@@ -190,17 +529,22 @@ class CamProfile:
         Parameters
         ----------
         master : array_like
-            Master position(s) in master units. Periodic cams wrap; a non-periodic cam raises
-            :class:`~ecam.errors.InputError` outside [0, master_period].
+            Master position(s) in master units, finite. Periodic cams wrap; a non-periodic cam
+            raises :class:`~ecam.errors.InputError` outside [0, master_period].
         order : int
             0 position, 1 velocity (slave units per master unit), 2 acceleration, 3 jerk, ...
         side : {'right', 'left'}
             One-sided limit at a joint.
         """
+        order = validate.integer("order", _plain(order), minimum=0)
+        validate.choice("side", side, SIDES)
         scalar = np.ndim(master) == 0
-        x = np.asarray(master, dtype=float)
+        try:
+            x = np.asarray(master, dtype=float)
+        except (TypeError, ValueError):
+            raise validate.fail("master", master, "a number or an array of numbers") from None
         if not np.all(np.isfinite(x)):
-            raise InputError("master position should be finite")
+            raise validate.fail("master", float(x[~np.isfinite(x)].flat[0]), "finite")
         period = self.master_period
         if self.periodic:
             x = np.mod(x, period)
@@ -208,9 +552,8 @@ class CamProfile:
                 x = np.where(x == 0.0, period, x)
         elif np.any((x < 0) | (x > period)):
             bad = x[(x < 0) | (x > period)].flat[0]
-            raise InputError(
-                f"master position {bad!r} is outside the non-periodic cam's range [0, {period!r}]"
-            )
+            raise validate.fail("master", float(bad), f"in [0, {validate.show(period)}], the range of a "
+                                "non-periodic cam")
         x = self._snap_to_joints(x)
         index = np.searchsorted(self._starts, x, side="right" if side == "right" else "left") - 1
         index = np.clip(index, 0, len(self.segments) - 1)
@@ -314,6 +657,45 @@ class CamProfile:
         return best
 
 
+# The settings of a cam file's [table] (ecam.table_spec.TableSpec checks their values).
+TABLE_KEYS = ("interp", "master_counts", "points", "slave_counts_per_unit", "tolerance")
+# TOML basic strings: these characters are escaped, every other control character as \uXXXX.
+_TOML_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+
+
+def _law_name(i: int, seg: Segment) -> str:
+    """The name a cam file gives the law of segment ``i``."""
+    if seg.boundary is not None:
+        return seg.law.name  # poly5 / poly7, with its boundary conditions
+    if seg.law == DWELL or LAWS.get(seg.law.name) == seg.law:
+        return seg.law.name
+    raise validate.fail(f"segment[{i}].law", seg.law.name, "a law of ecam.LAWS, 'dwell' or a polynomial "
+                        "from Segment.polynomial, to be written to a cam file")
+
+
+def _toml_value(field: str, value) -> str:
+    """``value`` as a TOML value that reads back equal."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)  # inf / -inf / nan are TOML too
+    if isinstance(value, str):
+        out = []
+        for char in value:
+            if char in _TOML_ESCAPES:
+                out.append(_TOML_ESCAPES[char])
+            elif ord(char) < 0x20 or ord(char) == 0x7F:
+                out.append(f"\\u{ord(char):04X}")
+            elif 0xD800 <= ord(char) <= 0xDFFF:
+                raise validate.fail(field, value, "text without lone surrogates (TOML is UTF-8)")
+            else:
+                out.append(char)
+        return '"' + "".join(out) + '"'
+    raise validate.fail(field, value, "a string, a number or true/false (a TOML value)")
+
+
 def _piece_values(seg: Segment, x: np.ndarray, order: int, p0: float, p1: float) -> np.ndarray:
     """Derivative values of one smooth piece of a segment, one-sided at its own ends."""
     out = np.empty_like(x)
@@ -329,5 +711,5 @@ def _piece_values(seg: Segment, x: np.ndarray, order: int, p0: float, p1: float)
 
 
 def dwell(master_start: float, master_end: float, slave: float, name: str = "dwell") -> Segment:
-    """A segment that holds the slave at ``slave``."""
-    return Segment(master_start, master_end, slave, slave, _law("constant_velocity"), name)
+    """A segment that holds the slave at ``slave`` (law ``"dwell"``)."""
+    return Segment(master_start, master_end, slave, slave, DWELL, name)

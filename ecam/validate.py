@@ -15,7 +15,8 @@ Both derive from ``ValueError``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from contextlib import contextmanager
 
 from .errors import CamFileError, InputError
 
@@ -36,13 +37,36 @@ def show(value) -> str:
 
 
 def fail(field: str, value, expected: str, error=InputError) -> InputError:
-    """The error for ``field`` holding ``value`` where ``expected`` was wanted (not raised)."""
-    return error(f"{field}: {show(value)} should be {expected}")
+    """The error for ``field`` holding ``value`` where ``expected`` was wanted (not raised).
+
+    The error remembers ``field`` (as ``error.field``), so a reader can rename it, see
+    :func:`renamed`.
+    """
+    return _with_field(error(f"{field}: {show(value)} should be {expected}"), field)
 
 
 def missing(field: str, expected: str, error=InputError) -> InputError:
     """The error for a required ``field`` that is absent (not raised)."""
-    return error(f"{field}: missing; expected {expected}")
+    return _with_field(error(f"{field}: missing; expected {expected}"), field)
+
+
+def _with_field(exc, field: str):
+    exc.field = field
+    return exc
+
+
+def renamed(exc: Exception, rename: Callable[[str], str], error=InputError) -> InputError:
+    """``exc`` again, as an ``error``, with its field renamed by ``rename`` (not raised).
+
+    A reader hands values to the Python API, whose messages name the API's parameters
+    (``segment[2].master_start``); ``rename`` maps them onto the reader's own field names
+    (``segment[2].start``). A message that names no field keeps its text.
+    """
+    text = str(exc)
+    field = getattr(exc, "field", None)
+    if isinstance(field, str) and text.startswith(field + ":"):
+        return _with_field(error(rename(field) + text[len(field):]), rename(field))
+    return error(text)
 
 
 def number(field: str, value, *, minimum=None, maximum=None, strict: bool = False,
@@ -202,6 +226,17 @@ class Fields:
         if value is None:
             return default
         return self._checked(string, key, value)
+
+    @contextmanager
+    def calling(self, rename: Callable[[str], str] | None = None):
+        """Run a call into the Python API: an :class:`InputError` it raises becomes this file's
+        error, its field renamed by ``rename`` (default: placed inside this table)."""
+        try:
+            yield
+        except CamFileError:
+            raise
+        except InputError as exc:
+            raise self.error(str(renamed(exc, rename or self.name))) from None
 
     def get(self, key: str, default=None):
         """The raw value of ``key`` (for fields with a shape of their own)."""

@@ -118,7 +118,10 @@ def test_smallest_cycle_time_the_validator_allows_runs(tmp_path):
 
 
 def test_poly5_boundary_that_overflows_when_normalized(tmp_path):
+    # Every number is within validate.MAX_MAGNITUDE (1e150); normalized, 1e100 * 1e100**2 / 1e-100
+    # overflows.
     path = tmp_path / "p5.toml"
     path.write_text('master_period = 360.0\nperiodic = false\n[[segment]]\nlaw = "poly5"\n'
-                    'span = 1e300\nstroke = 1.0\nstart_acceleration = 1.0\n')
-    assert_one_line(run_cli("check", path), "should give a finite normalized value")
+                    'span = 1e100\nstroke = 1e-100\nstart_acceleration = 1e100\n')
+    assert_one_line(run_cli("check", path), "segment[0].start_acceleration: 1e+100 should be finite and at most "
+                    "1e+150 once normalized (value * span^2 / stroke; span 1e+100, stroke 1e-100)")

@@ -84,7 +84,7 @@ def test_periodic_evaluation_wraps(drrd):
 def test_non_periodic_range_is_checked():
     profile = chain([("cycloidal", 90.0, 10.0)], periodic=False)
     assert profile(90.0) == pytest.approx(10.0)
-    with pytest.raises(ecam.InputError, match="outside the non-periodic cam's range"):
+    with pytest.raises(ecam.InputError, match=r"master: 91 should be in \[0, 90\], the range of a non-periodic cam"):
         profile(91.0)
 
 

@@ -63,23 +63,26 @@ Layout (units in the names or below; SI unless said otherwise)::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-from ecam.camfile import show as _show
+from ecam.camfile import CAMS_DIR, load_cam, read_toml
 from ecam.errors import CamFileError, InputError
+from ecam.profile import CamProfile
+from ecam.table import INTERPOLATIONS
+from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
+from hil_sim.bus import FRAME_KINDS, Faults
+from ecam.validate import show as _show
 
 CAM_MODES = ("controller", "drive")
 PROFILES = ("constant", "start_stop", "cam_in")
 MODELS = ("auto", "rigid", "two_mass")
-INTERPS = ("linear", "cubic", "quintic", "auto")
+INTERPS = INTERPOLATIONS
 GAIN_BANDWIDTH_KEYS = ("velocity_bandwidth_hz", "position_bandwidth_hz", "integral_ratio")
 GAIN_KEYS = ("position_kp", "velocity_kp", "velocity_ki", "velocity_feedforward",
              "acceleration_feedforward")
 # Resolution of the slave in counts per user unit: a nanometre encoder on a metre is 1e9, a
 # coarse one on a degree 1e-3; bounds far outside both keep the count arithmetic finite.
-MIN_COUNTS_PER_UNIT = 1e-6
-MAX_COUNTS_PER_UNIT = 1e12
 
 # Physical range of each mechanics field [SI]: wide enough for a watch motor and a press, narrow
 # enough that products of them (torques, energies, the plant matrices) stay finite in float64.
@@ -129,14 +132,30 @@ class MasterSpec:
 
 @dataclass(frozen=True)
 class CamSpec:
-    """The cam file (absolute path) and the table format; None = the cam file's default."""
+    """The cam and the table format; None = the cam file's own ``[table]`` setting.
 
-    file: Path
+    Attributes
+    ----------
+    file : Path or None
+        The cam file (absolute path); None when the cam was given in Python.
+    profile : ecam.CamProfile or None
+        A cam given in Python (``load_scene(path, cam=profile)``); it replaces ``file``.
+    interp, points, tolerance, master_counts, slave_counts_per_unit
+        The table settings (see :class:`ecam.TableSpec`); tolerance in slave units, counts
+        (``"2 counts"``) or ``"0.01 deg"``.
+    """
+
+    file: Path | None
     interp: str | None = None
     points: int | None = None
-    tolerance: float | str | None = None  # slave units, or e.g. "2 counts"
+    tolerance: float | str | None = None
     master_counts: int | None = None
     slave_counts_per_unit: float | None = None
+    profile: CamProfile | None = field(default=None, compare=False, repr=False)
+
+    def load_profile(self) -> CamProfile:
+        """The cam: the one given in Python, else the cam file read and checked."""
+        return self.profile if self.profile is not None else load_cam(self.file)
 
 
 @dataclass(frozen=True)
@@ -211,7 +230,6 @@ class Scene:
 
     def with_master_speed(self, speed: float) -> "Scene":
         """The same scene at another master speed [master units/s]."""
-        from dataclasses import replace
         return replace(self, master=replace(self.master, speed=float(speed), speed_rpm=None))
 
 
@@ -291,13 +309,16 @@ class _Reader:
         return value
 
 
-def load_scene(path) -> Scene:
+def load_scene(path, cam: CamProfile | None = None) -> Scene:
     """Read and validate a scene file.
 
     Parameters
     ----------
     path : str or Path
         The scene TOML; the cam file inside is resolved relative to it.
+    cam : ecam.CamProfile, optional
+        A cam built in Python: it replaces the scene's ``cam.file`` (which may then be left
+        out); the scene's other ``[cam]`` settings still apply.
 
     Returns
     -------
@@ -309,16 +330,17 @@ def load_scene(path) -> Scene:
         Missing or unreadable file, invalid TOML, or a field out of range; one line naming
         the field, the value and what was expected.
     """
-    from ecam.camfile import read_toml
-
     path = Path(path)
     data = read_toml(path, "scene file")
-    return parse_scene(data, base=path.parent, source=path.name, path=path.resolve())
+    return parse_scene(data, base=path.parent, source=path.name, path=path.resolve(), cam=cam)
 
 
 def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
-                path: Path | None = None) -> Scene:
-    """Build a :class:`Scene` from a parsed TOML mapping; ``base`` resolves the cam file."""
+                path: Path | None = None, cam: CamProfile | None = None) -> Scene:
+    """Build a :class:`Scene` from a parsed TOML mapping; ``base`` resolves the cam file and
+    ``cam``, an in-memory :class:`ecam.CamProfile`, replaces it (see :func:`load_scene`)."""
+    if cam is not None and not isinstance(cam, CamProfile):
+        raise InputError(f"cam: {type(cam).__name__} should be an ecam.CamProfile")
     r = _Reader(source)
     r.unknown(data, {"name", "description", "cam_mode", "master", "cam", "drive", "mechanics",
                      "bus", "limits", "duration"}, "")
@@ -330,7 +352,7 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     if cam_mode == "drive" and master.profile == "cam_in":
         raise r.fail("cam_mode", "'drive' should be 'controller' for master.profile 'cam_in' "
                      "(the controller plans the cam-in)")
-    cam = _cam(r, data, base)
+    cam = _cam(r, data, base, cam)
     drive = _drive(r, data)
     mechanics = _mechanics(r, data)
     bus = _bus(r, data)
@@ -381,26 +403,17 @@ def _master(r: _Reader, data) -> MasterSpec:
     return MasterSpec(**spec)
 
 
-def _cam(r: _Reader, data, base: Path) -> CamSpec:
+def _cam(r: _Reader, data, base: Path, profile: CamProfile | None = None) -> CamSpec:
     raw = r.table(data, "cam", {"file", "interp", "points", "tolerance", "master_counts",
-                                "slave_counts_per_unit"}, required=True)
-    if "file" not in raw:
+                                "slave_counts_per_unit"}, required=profile is None)
+    if profile is not None:
+        file = None
+    elif "file" not in raw:
         raise r.fail("cam.file", "missing; expected the path of a cam TOML file")
-    if not isinstance(raw["file"], str):
+    elif not isinstance(raw["file"], str):
         raise r.fail("cam.file", f"{_show(raw['file'])} should be a string")
-    try:
-        file = (base / raw["file"]).resolve()
-    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
-        raise r.fail("cam.file", f"{raw['file']!r} cannot be resolved: {exc}") from None
-    if not file.is_file():
-        # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
-        # also ecam's built-in cams, found by file name.
-        from ecam.camfile import CAMS_DIR
-
-        built_in = CAMS_DIR / Path(raw["file"]).name
-        if not built_in.is_file():
-            raise r.fail("cam.file", f"{raw['file']!r} does not exist (resolved to {str(file)!r})")
-        file = built_in.resolve()
+    else:
+        file = _cam_file(r, raw["file"], base)
     interp = raw.get("interp")
     if interp is not None and interp not in INTERPS:
         raise r.fail("cam.interp", f"{_show(interp)} should be one of {', '.join(INTERPS)}")
@@ -408,20 +421,34 @@ def _cam(r: _Reader, data, base: Path) -> CamSpec:
         raise r.fail("cam", "give at most one of points and tolerance")
     tolerance = raw.get("tolerance")
     if tolerance is not None:
-        from ecam.compile import parse_tolerance
-
         try:
             parse_tolerance(tolerance)  # a number in slave units, or e.g. "2 counts"
         except InputError:
             raise r.fail("cam.tolerance", f"{_show(tolerance)} should be a number > 0 in slave units "
                          "or a string like '2 counts'") from None
     return CamSpec(
-        file=file, interp=interp,
+        file=file, interp=interp, profile=profile,
         points=r.integer(raw, "points", "cam", minimum=2),
         tolerance=tolerance,
         master_counts=r.integer(raw, "master_counts", "cam", minimum=2, maximum=2**31),
         slave_counts_per_unit=r.number(raw, "slave_counts_per_unit", "cam",
                                        minimum=MIN_COUNTS_PER_UNIT, maximum=MAX_COUNTS_PER_UNIT))
+
+
+def _cam_file(r: _Reader, written: str, base: Path) -> Path:
+    """The cam file a scene names, resolved relative to the scene (or a built-in cam)."""
+    try:
+        file = (base / written).resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
+        raise r.fail("cam.file", f"{written!r} cannot be resolved: {exc}") from None
+    if not file.is_file():
+        # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
+        # also ecam's built-in cams, found by file name.
+        built_in = CAMS_DIR / Path(written).name
+        if not built_in.is_file():
+            raise r.fail("cam.file", f"{written!r} does not exist (resolved to {str(file)!r})")
+        file = built_in.resolve()
+    return file
 
 
 def _drive(r: _Reader, data) -> DriveSpec:
@@ -432,7 +459,7 @@ def _drive(r: _Reader, data) -> DriveSpec:
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
     cycle_s = r.number(raw, "cycle_s", "drive", default=0.001, minimum=1e-5, maximum=0.255)
     # 0x60C2 holds the period as value x 10^index with an 8-bit value: it must be representable.
-    if _interpolation_period(cycle_s) is None:
+    if interpolation_period(cycle_s) is None:
         raise r.fail("drive.cycle_s", f"{cycle_s!r} should be n x 10^e s with n in 1..255 "
                      "(the 0x60C2 format), e.g. 0.001 or 0.0025")
     return DriveSpec(
@@ -445,8 +472,9 @@ def _drive(r: _Reader, data) -> DriveSpec:
         gains=gains)
 
 
-def _interpolation_period(cycle_s: float) -> tuple[int, int] | None:
-    """(value, index) with value x 10^index == cycle_s, value in 1..255, or None."""
+def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
+    """The cycle as CiA 402 object 0x60C2 holds it: (value, index) with value x 10^index ==
+    ``cycle_s`` and value in 1..255 (UNSIGNED8), or None when it has no such form."""
     for index in range(-6, 1):
         value = cycle_s / 10.0**index
         if 1 <= round(value) <= 255 and math.isclose(value, round(value), rel_tol=1e-9):
@@ -475,7 +503,6 @@ def _mechanics(r: _Reader, data) -> MechanicsSpec:
 
 
 def _bus(r: _Reader, data) -> BusSpec:
-    from hil_sim.bus import FRAME_KINDS, Faults
     raw = r.table(data, "bus", {"bitrate", "faults"})
     bitrate = r.integer(raw, "bitrate", "bus", default=1_000_000, minimum=10_000,
                         maximum=1_000_000)
@@ -545,3 +572,6 @@ def _duration(r: _Reader, data) -> DurationSpec:
         master_periods=r.number(raw, "master_periods", "duration", minimum=0.0, strict=True))
 
 
+
+
+_interpolation_period = interpolation_period  # the rig's old name, until it imports the public one

@@ -25,16 +25,18 @@ the file and its field.
 
 from . import design, mechanics
 from .camfile import load_cam, parse_cam
+from .certificate import Certificate, Measurement
 from .compile import compile_table
 from .errors import CamFileError, EcamError, InputError, SimulationError, TableFormatError
 from .laws import DWELL, LAW_NAMES, LAWS, Law, law, polynomial_from_boundary
 from .profile import CamProfile, CheckReport, Discontinuity, Segment
-from .table import KINDS, CamTable, TableFormat
+from .table import INTERPOLATIONS, KINDS, CamTable, TableFormat
+from .table_spec import TableSpec
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "CamFileError", "CamProfile", "CamTable", "CheckReport", "DWELL", "Discontinuity", "EcamError", "InputError",
-    "KINDS", "LAWS", "LAW_NAMES", "Law", "Segment", "SimulationError", "TableFormat", "TableFormatError",
+    "CamFileError", "CamProfile", "CamTable", "Certificate", "CheckReport", "DWELL", "Discontinuity", "EcamError", "InputError",
+    "INTERPOLATIONS", "KINDS", "LAWS", "LAW_NAMES", "Law", "Measurement", "Segment", "SimulationError", "TableFormat", "TableFormatError", "TableSpec",
     "compile_table", "design", "law", "load_cam", "mechanics", "parse_cam", "polynomial_from_boundary",
 ]

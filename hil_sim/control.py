@@ -14,23 +14,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ecam.errors import InputError
-from hil_sim.mechanics import Mechanics
+from ecam.mechanics import Mechanics
+from ecam.validate import choice, fail, integer, number, plain, positive
 from hil_sim.plant import RigidPlant, TwoMassPlant, choose_model
 
-_MODELS = ("auto", "rigid", "two_mass")
+#: Plant models a :class:`ServoAxis` (and a scene's ``drive.model``) can ask for.
+MODELS = ("auto", "rigid", "two_mass")
 _DEFAULT_COUNTS_PER_MOTOR_RAD = 2**20 / (2.0 * math.pi)  # a 20-bit single-turn encoder
 
 
-def _finite(name: str, value: object, minimum: float = 0.0, strict: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"{name} {value!r} should be a real number")
-    number = float(value)
-    bad = not math.isfinite(number) or (number <= minimum if strict else number < minimum)
-    if bad:
-        raise InputError(f"{name} {number} should be finite and {'>' if strict else '>='} "
-                         f"{minimum:g}")
-    return number
+def _non_negative(field: str, value: object) -> float:
+    return number(field, plain(value), minimum=0.0)
 
 
 @dataclass(frozen=True)
@@ -58,12 +52,10 @@ class Gains:
     acceleration_feedforward: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position_kp", _finite("position_kp", self.position_kp,
-                                                        strict=True))
-        object.__setattr__(self, "velocity_kp", _finite("velocity_kp", self.velocity_kp,
-                                                        strict=True))
+        for name in ("position_kp", "velocity_kp"):
+            object.__setattr__(self, name, positive(name, plain(getattr(self, name))))
         for name in ("velocity_ki", "velocity_feedforward", "acceleration_feedforward"):
-            object.__setattr__(self, name, _finite(name, getattr(self, name)))
+            object.__setattr__(self, name, _non_negative(name, getattr(self, name)))
 
     @classmethod
     def from_mechanics(cls, mechanics: Mechanics, velocity_bandwidth_hz: float = 200.0,
@@ -90,10 +82,10 @@ class Gains:
         Gains
         """
         if not isinstance(mechanics, Mechanics):
-            raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
-        f_v = _finite("velocity_bandwidth_hz", velocity_bandwidth_hz, strict=True)
-        f_p = _finite("position_bandwidth_hz", position_bandwidth_hz, strict=True)
-        ratio = _finite("integral_ratio", integral_ratio)
+            raise fail("mechanics", mechanics, "a Mechanics")
+        f_v = positive("velocity_bandwidth_hz", plain(velocity_bandwidth_hz))
+        f_p = positive("position_bandwidth_hz", plain(position_bandwidth_hz))
+        ratio = _non_negative("integral_ratio", integral_ratio)
         velocity_kp = mechanics.reflected_inertia() * 2.0 * math.pi * f_v
         return cls(position_kp=2.0 * math.pi * f_p, velocity_kp=velocity_kp,
                    velocity_ki=velocity_kp * 2.0 * math.pi * f_v * ratio,
@@ -165,24 +157,21 @@ class ServoAxis:
                  model: str = "auto", excitation_hz: float = 0.0, initial_counts: int = 0,
                  model_factor: float = 10.0) -> None:
         if not isinstance(mechanics, Mechanics):
-            raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
+            raise fail("mechanics", mechanics, "a Mechanics")
         if gains is None:
             gains = Gains.from_mechanics(mechanics)
         if not isinstance(gains, Gains):
-            raise InputError(f"gains {gains!r} should be a Gains")
-        self.cycle_s = _finite("cycle_s", cycle_s, strict=True)
-        if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
-            raise InputError(f"substeps {substeps!r} should be an integer >= 1")
-        self.counts_per_motor_rad = _finite("counts_per_motor_rad", counts_per_motor_rad,
-                                            strict=True)
-        initial_counts = _check_counts("initial_counts", initial_counts)
+            raise fail("gains", gains, "a Gains")
+        self.cycle_s = positive("cycle_s", plain(cycle_s))
+        substeps = integer("substeps", plain(substeps), minimum=1)
+        self.counts_per_motor_rad = positive("counts_per_motor_rad", plain(counts_per_motor_rad))
+        initial_counts = _counts("initial_counts", initial_counts)
         self.mechanics = mechanics
         self.gains = gains
         self.substeps = substeps
         self.dt = self.cycle_s / substeps
 
-        if model not in _MODELS:
-            raise InputError(f"model {model!r} should be one of {', '.join(_MODELS)}")
+        choice("model", model, MODELS)
         if model == "auto":
             self.model, self.model_reason = choose_model(
                 mechanics, excitation_hz, gains.velocity_bandwidth_hz(mechanics), model_factor)
@@ -193,7 +182,8 @@ class ServoAxis:
                                  f"{mechanics.torsional_frequency_hz():.4g} Hz ignored).")
         else:
             if mechanics.is_rigid:
-                raise InputError("model 'two_mass' needs coupling_stiffness, got None")
+                raise fail("model", model, "'auto' or 'rigid' when mechanics has no "
+                           "coupling_stiffness (a rigid axis)")
             self.model = "two_mass"
             self.model_reason = (f"two-mass model: chosen by the caller (coupling mode at "
                                  f"{mechanics.torsional_frequency_hz():.4g} Hz).")
@@ -232,9 +222,8 @@ class ServoAxis:
             It is ramped linearly from the previous offset across the cycle, as the
             position is, and added to the speed command.
         """
-        target_counts = _check_counts("target_counts", target_counts)
-        offset = _finite("velocity_offset_counts_per_s", velocity_offset_counts_per_s,
-                         minimum=-math.inf)
+        target_counts = _counts("target_counts", target_counts)
+        offset = number("velocity_offset_counts_per_s", plain(velocity_offset_counts_per_s))
         step_counts = (target_counts - self._target_raw + 2**31) % 2**32 - 2**31
         start_counts = self._target
         self._target_raw = target_counts
@@ -298,6 +287,19 @@ class ServoAxis:
         self._saturated = saturated
         self._cycles += 1
 
+    def restart(self) -> None:
+        """Forget the previous targets: the next cycle starts from where the motor is.
+
+        A drive that enters OPERATION ENABLED (CiA 402 transition 4, also after a fault reset)
+        takes its actual position as the last target; interpolating from a target it held
+        before the fault would command the jump that caused the fault again.
+        """
+        counts = self._motor_counts()
+        self._target_raw = self._target = counts
+        self._reference_speed = 0.0
+        self._offset = 0.0
+        self._integral = 0.0
+
     # ------------------------------------------------------------- read-outs
     def _motor_counts(self) -> int:
         return round(self.plant.motor_angle * self.counts_per_motor_rad)
@@ -354,8 +356,6 @@ class ServoAxis:
         }
 
 
-def _check_counts(name: str, value: object) -> int:
-    """Accept Python and numpy integers (raw counts), reject floats and bools."""
-    if isinstance(value, bool) or not hasattr(value, "__index__"):
-        raise InputError(f"{name} {value!r} should be an integer number of counts")
-    return int(value.__index__())
+def _counts(field: str, value: object) -> int:
+    """A raw count: a Python or numpy integer (not a float, not a bool)."""
+    return integer(field, plain(value))

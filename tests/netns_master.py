@@ -67,14 +67,22 @@ def main(node_id: int) -> int:
         target_map.transmit()
         emcy = node.emcy.wait(FOLLOWING_ERROR_EMCY, timeout=5.0)
         assert emcy is not None, "no following-error EMCY"
+        # CiA 402: FAULT REACTION ACTIVE passes to FAULT by itself once the reaction is done
+        # (transition 14); a fault reset is accepted in FAULT only.
+        deadline = time.monotonic() + 2.0
         statusword = node.sdo[0x6041].raw
-        assert statusword & 0x08, f"statusword 0x{statusword:04X} shows no fault"
+        while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
+            time.sleep(SYNC_PERIOD_S)
+            statusword = node.sdo[0x6041].raw
+        assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} is not FAULT"
+        time.sleep(5 * SYNC_PERIOD_S)  # the statusword TPDO catches up
         step(f"emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
         position = node.sdo[0x6064].raw
         target_map[0x607A].raw = position
         target_map.transmit()
         node.reset_from_fault()
         node.state = "OPERATION ENABLED"
+        position = node.sdo[0x6064].raw  # re-enabled where the axis is: stream on from there
         for k in range(50):
             target_map[0x607A].raw = position + 20 * k
             target_map.transmit()

@@ -509,3 +509,25 @@ def test_motor_rated_torque_zero_is_refused_and_the_drive_keeps_running(rig):
 def test_velocity_offset_saturates_at_integer32(value, expected):
     # 0x60B1 is INTEGER32: a velocity beyond it saturates; wrapping would reverse its sign.
     assert drv._saturate_int32(value) == expected
+
+
+def test_re_enabling_after_a_fault_reset_starts_from_the_actual_position(rig):
+    # The axis kept the target that caused the fault and interpolated from it again: re-enabling
+    # re-faulted at once (issue 10, item 5). CiA 402: OPERATION ENABLED starts where the motor is.
+    rig.boot_and_enable()
+    start = rig.node.sdo[0x6064].raw
+    rig.node.sdo[0x607A].raw = start + 2**29  # far outside the following-error window
+    for _ in range(200):
+        rig.master.sync.transmit()
+        if rig.drive.state == cia402.FAULT:
+            break
+    assert rig.drive.state == cia402.FAULT
+    rig.node.sdo[0x6040].raw = 0x80  # fault reset (rising edge)
+    for controlword in (0x06, 0x07, 0x0F):
+        rig.node.sdo[0x6040].raw = controlword
+    actual = rig.node.sdo[0x6064].raw
+    for k in range(100):
+        rig.node.sdo[0x607A].raw = actual + 10 * k
+        rig.master.sync.transmit()
+        assert rig.drive.state == cia402.OPERATION_ENABLED, k
+    assert abs(rig.node.sdo[0x60F4].raw) < 1000

@@ -116,7 +116,7 @@ class VirtualDrive:
                              f"VirtualDrive-{node_id}")
         self.emcy = EmcyProducer(self.network, self.objects, self.nmt)
         self.state_machine = PowerStateMachine(
-            self.values, self.emcy, lambda: self.axis.position_counts, self.cam.forget_master)
+            self.values, self.emcy, lambda: self.axis.position_counts, self._on_enable)
         # Live objects whose write does more than store the value (SDO and RPDO alike).
         self._writers = {
             CONTROLWORD: self.state_machine.write_controlword,
@@ -278,6 +278,11 @@ class VirtualDrive:
         self._make_axis(position)
         self._reset_communication()
         self.state_machine.reset(self.axis.position_counts)
+
+    def _on_enable(self) -> None:
+        """OPERATION ENABLED entered (not from quick stop): start from the actual position."""
+        self.cam.forget_master()
+        self.axis.restart()
 
     def _make_axis(self, position_counts: int, cycle_s: float | None = None) -> None:
         """(Re)build the servo axis at ``position_counts`` for an interpolation period."""

@@ -92,7 +92,20 @@ def main(node_id: int) -> int:
         assert statusword & 0x6F == 0x27, f"statusword 0x{statusword:04X} after re-enable"
         step(f"fault reset and re-enabled, statusword 0x{statusword:04X}, following again")
 
+        # SYNC supervision: 0x1006 arms it, 0x6007 = 1 (fault) is the reaction to a lost SYNC.
+        node.sdo[0x1006].raw = int(SYNC_PERIOD_S * 1e6)
+        node.emcy.reset()
         network.sync.stop()
+        emcy = node.emcy.wait(0x8100, timeout=2.0)
+        assert emcy is not None, "no EMCY when the SYNC stopped"
+        deadline = time.monotonic() + 2.0
+        statusword = node.sdo[0x6041].raw
+        while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
+            time.sleep(SYNC_PERIOD_S)
+            statusword = node.sdo[0x6041].raw
+        assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} after the SYNC stopped"
+        step(f"sync lost: emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
+
         node.nmt.state = "STOPPED"
         time.sleep(0.2)
         step(f"nmt {node.nmt.state}")

@@ -57,5 +57,5 @@ def test_an_unmodified_canopen_master_in_another_process_runs_the_drive():
     assert run.returncode == 0 and run.stdout.strip().endswith("ok"), run.stdout + run.stderr
     for stage in ("boot-up", "heartbeat", "sdo", "pdo configuration read", "mode CYCLIC SYNCHRONOUS POSITION",
                   "state OPERATION ENABLED", "streamed 200 targets", "emcy 0x8611", "fault reset and re-enabled",
-                  "nmt STOPPED", "drive exit 0"):
+                  "sync lost: emcy 0x8100", "nmt STOPPED", "drive exit 0"):
         assert any(line.startswith(f"step: {stage}") for line in steps), (stage, steps)

@@ -11,6 +11,8 @@ from hil_sim.drive.objects import CAN_ID_MASK, COB_ID_EMCY
 EMCY_NO_ERROR = 0x0000  # error reset
 EMCY_FOLLOWING_ERROR = 0x8611
 EMCY_PDO_LENGTH = 0x8210
+# CiA 301, emergency error codes: 81xx communication. The SYNC stopped arriving.
+EMCY_COMMUNICATION = 0x8100
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_COMMUNICATION = 0x10
 ERROR_REGISTER_PROFILE = 0x20

@@ -33,6 +33,7 @@ APPLICATION_AREA = range(0x2000, 0x10000)  # manufacturer and standardised profi
 # CiA 301 communication objects.
 ERROR_REGISTER = ObjectKey(0x1001)
 COB_ID_SYNC = ObjectKey(0x1005)
+COMMUNICATION_CYCLE_PERIOD = ObjectKey(0x1006)  # us; 0: SYNC not supervised
 COB_ID_EMCY = ObjectKey(0x1014)
 PRODUCER_HEARTBEAT_TIME = ObjectKey(0x1017)  # ms
 
@@ -59,6 +60,7 @@ SDO_TRANSMIT_COB_ID = 0x580  # server -> client
 HEARTBEAT_COB_ID = 0x700
 
 # CiA 402 drive objects.
+ABORT_CONNECTION_OPTION_CODE = ObjectKey(0x6007)  # reaction to a lost connection
 ERROR_CODE = ObjectKey(0x603F)
 CONTROLWORD = ObjectKey(0x6040)
 STATUSWORD = ObjectKey(0x6041)

@@ -12,15 +12,15 @@ from ecam.errors import InputError
 from hil_sim.bus import SimNetwork, open_virtual_bus
 from hil_sim.cia402 import (
     CYCLIC_SYNCHRONOUS_POSITION, ENERGIZED, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
-    OPERATIONAL, PRE_OPERATIONAL,
+    OPERATIONAL, PRE_OPERATIONAL, QUICK_STOP_ACTIVE, SWITCH_ON_DISABLED,
 )
 from hil_sim.control import Gains, ServoAxis
 from hil_sim.drive.cam_slot import NO_ERROR_MESSAGE, CamSlot
-from hil_sim.drive.emcy import EmcyProducer
+from hil_sim.drive.emcy import EMCY_COMMUNICATION, ERROR_REGISTER_COMMUNICATION, EmcyProducer
 from hil_sim.drive.nmt import NmtSlave
 from hil_sim.drive.objects import (
-    APPLICATION_AREA, CAM_COMMAND, CAM_LAST_ERROR_MESSAGE, CAM_MODE, CAM_TABLE_DOWNLOAD,
-    COB_ID_SYNC, COMMUNICATION_AREA, CONTROLWORD, EDS_PATH, FOLLOWING_ERROR_ACTUAL_VALUE,
+    ABORT_CONNECTION_OPTION_CODE, APPLICATION_AREA, CAM_COMMAND, CAM_LAST_ERROR_MESSAGE, CAM_MODE, CAM_TABLE_DOWNLOAD,
+    COB_ID_SYNC, COMMUNICATION_AREA, COMMUNICATION_CYCLE_PERIOD, CONTROLWORD, EDS_PATH, FOLLOWING_ERROR_ACTUAL_VALUE,
     INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD, INTERPOLATION_TIME_PERIOD_VALUE,
     MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, MOTOR_RATED_TORQUE, NMT_COB_ID,
     PDO_PARAMETERS, POSITION_ACTUAL_VALUE, PROCESS_OBJECTS, PRODUCER_HEARTBEAT_TIME,
@@ -45,6 +45,11 @@ def _default_mechanics():
     # A small servo motor on a rigid load: enough for protocol tests and `hil-sim drive`.
     return Mechanics(motor_inertia=1.2e-4, load_inertia=3.0e-4, motor_damping=1e-4,
                      motor_torque_limit=4.0)
+
+
+#: Periods of 0x1006 without a SYNC after which the SYNC counts as lost: one late SYNC (jitter)
+#: is tolerated, a stopped master is not.
+SYNC_LOSS_PERIODS = 3
 
 
 class VirtualDrive:
@@ -101,6 +106,8 @@ class VirtualDrive:
         self.axis_wall_s = 0.0  # wall time spent in ServoAxis.cycle (profiling)
         self.axis: ServoAxis | None = None
         self._wall_clock = False
+        self._last_sync_wall: float | None = None  # wall time of the last SYNC (external master)
+        self.sync_losses = 0  # SYNC losses detected
         # The live objects; one dict for the drive's lifetime, shared by every service.
         self.values: dict[tuple[int, int], object] = {}
 
@@ -112,7 +119,7 @@ class VirtualDrive:
         self.objects = StoredObjects(self.node)
         self.cam = CamSlot(self.values)
         self.nmt = NmtSlave(self.network, node_id, self._now, self._reset, self._nmt_entered)
-        self.runner = Runner(bus, own_bus, self.network, self.nmt.service_heartbeat,
+        self.runner = Runner(bus, own_bus, self.network, self._on_idle,
                              f"VirtualDrive-{node_id}")
         self.emcy = EmcyProducer(self.network, self.objects, self.nmt)
         self.state_machine = PowerStateMachine(
@@ -301,7 +308,44 @@ class VirtualDrive:
 
     # ----------------------------------------------------------------------------- cycle
     def _on_sync(self, can_id, data, timestamp) -> None:
+        if self._wall_clock:
+            self._last_sync_wall = time.monotonic()
         self.run_cycle(synchronous=True)
+
+    def _on_idle(self) -> None:
+        self.nmt.service_heartbeat()
+        if self._wall_clock:
+            self.supervise_sync(time.monotonic())
+
+    def supervise_sync(self, now: float) -> None:
+        """React once when the SYNC stops (an external master on the wall clock).
+
+        CiA 301 0x1006 (communication cycle period, us) non-zero arms the supervision: after
+        SYNC_LOSS_PERIODS periods without a SYNC, in NMT OPERATIONAL, the connection counts as
+        lost and CiA 402 0x6007 (abort connection option code) picks the reaction: 0 none,
+        1 fault (EMCY 0x8100, communication), 2 disable voltage, 3 quick stop. The next SYNC
+        re-arms it. The drive then keeps its own timer for one period, so the reaction (a
+        fault reaction ending in FAULT) takes effect without a SYNC.
+        """
+        period_us = self.objects.stored(COMMUNICATION_CYCLE_PERIOD)
+        last = self._last_sync_wall
+        if not period_us or last is None or self.nmt.state != OPERATIONAL:
+            return
+        if now - last <= SYNC_LOSS_PERIODS * period_us * 1e-6:
+            return
+        self._last_sync_wall = None
+        self.sync_losses += 1
+        option = self.objects.stored(ABORT_CONNECTION_OPTION_CODE)
+        machine = self.state_machine
+        if machine.state not in ENERGIZED or option == 0:
+            return
+        if option == 1:
+            machine.fault(EMCY_COMMUNICATION, ERROR_REGISTER_COMMUNICATION)
+        elif option == 2:
+            machine.enter(SWITCH_ON_DISABLED)
+        elif option == 3 and machine.state == OPERATION_ENABLED:
+            machine.enter(QUICK_STOP_ACTIVE)
+        self.free_run()
 
     def free_run(self) -> None:
         """Run one interpolation period without a SYNC (the SYNC was lost): the control loop

@@ -30,7 +30,8 @@ __all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_toml", "show"]
 # checkout, a copy in an installed wheel.
 CAMS_DIR = Path(__file__).resolve().parent / "cams"
 
-_TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "table", "segment"}
+_TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "net_stroke", "table",
+             "segment"}
 _BOUNDARY_FIELDS = tuple(f"{end}_{what}" for end in ("start", "end") for what in BOUNDARY_KEYS)
 _SEGMENT_KEYS = {"name", "law", "combination", "accel_ratio", "span", "end", "start", "stroke", "to", "from",
                  *_BOUNDARY_FIELDS}
@@ -157,9 +158,11 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
                 entries.append(Segment(*placement, law_name, r.string("name", default="")))
     segments = [_polynomial(entries, k, periodic) if isinstance(entry, tuple) else entry
                 for k, entry in enumerate(entries)]
+    net_stroke = top.number("net_stroke")  # checked against the strokes by CamProfile
     with top.calling(_file_name):
         return CamProfile(segments, period, periodic, name=top.get("name", Path(source).stem),
-                          master_unit=top.get("master_unit", "deg"), slave_unit=slave_unit, table=table)
+                          master_unit=top.get("master_unit", "deg"), slave_unit=slave_unit, table=table,
+                          net_stroke=net_stroke)
 
 
 def _file_name(field: str) -> str:

@@ -9,6 +9,7 @@ with the table's own facts (kind, points, step, CRC) into the dictionary that ``
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from fractions import Fraction
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,15 @@ class Measurement:
         Largest error of the same interpolant in float64, before any rounding.
     max_slope_error_counts_per_count : float
         Largest error of the slope the lookup returns, in slave counts per master count.
+    wrap_evaluated : str
+        For a table with a net stroke: which master counts across the seam and at far periods
+        were evaluated ("" otherwise: without a net stroke the lookup depends on the master
+        modulo the period alone, so one period says everything).
+    wrap_evaluated_counts : int
+    wrap_max_error_counts : float or None
+        Largest |lookup - (profile + k * net stroke)| there, the table's net stroke taken as
+        stored (exact); ``max_error_counts`` includes it.
+    wrap_max_error_at_master_counts : int or None
     """
 
     evaluated: str
@@ -39,6 +49,10 @@ class Measurement:
     max_error_at_master: float
     interpolation_error_counts: float
     max_slope_error_counts_per_count: float
+    wrap_evaluated: str = ""
+    wrap_evaluated_counts: int = 0
+    wrap_max_error_counts: float | None = None
+    wrap_max_error_at_master_counts: int | None = None
 
 
 @dataclass(frozen=True)
@@ -63,6 +77,12 @@ class Certificate:
         None for a table compiled with ``certify=False``.
     tolerance_counts : float or None
         The tolerance the table was chosen for, when it was compiled to one.
+    net_stroke_units : float
+        The cam's net stroke per period in slave units (0 for none).
+    net_stroke_residual_counts : float
+        |stored net stroke - the cam's| in counts per period: 0 when the cam's net stroke
+        (net_stroke x slave_counts_per_unit, as decimals) is a fraction with a denominator below
+        2^32, else the error of the closest such fraction; k periods away it adds k times this.
     """
 
     slave_counts_per_unit: float
@@ -74,6 +94,8 @@ class Certificate:
     joints_off_points: tuple[float, ...] = ()
     measurement: Measurement | None = None
     tolerance_counts: float | None = None
+    net_stroke_units: float = 0.0
+    net_stroke_residual_counts: float = 0.0
 
     @property
     def predicted_error_units(self) -> float:
@@ -133,4 +155,21 @@ class Certificate:
         if self.tolerance_counts is not None:
             out["tolerance_counts"] = self.tolerance_counts
             out["tolerance_units"] = self.tolerance_counts / self.slave_counts_per_unit
+        net: Fraction = f.net_stroke
+        if net:  # only tables with a net stroke have these keys (the others' reports are unchanged)
+            out.update({
+                "net_stroke_units": self.net_stroke_units,
+                "net_stroke_counts": float(net),
+                "net_stroke_fraction": [net.numerator, net.denominator],
+                "net_stroke_exact": self.net_stroke_residual_counts == 0,
+                "net_stroke_residual_counts": self.net_stroke_residual_counts,
+                "format_version": table.format_version,
+            })
+            if m is not None and m.wrap_max_error_counts is not None:
+                out.update({
+                    "wrap_evaluated": m.wrap_evaluated,
+                    "wrap_evaluated_counts": m.wrap_evaluated_counts,
+                    "wrap_max_error_counts": m.wrap_max_error_counts,
+                    "wrap_max_error_at_master_counts": m.wrap_max_error_at_master_counts,
+                })
         return out

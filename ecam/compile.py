@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from fractions import Fraction
 
 import numpy as np
 
@@ -17,13 +18,20 @@ from .certificate import Certificate, Measurement
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
-    HEADER_BYTES, KINDS, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat, overflow_proof,
+    HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
+    overflow_proof,
 )
 from .table_spec import MAX_POINTS, TableSpec, parse_tolerance
 
-__all__ = ["compile_table", "MAX_POINTS", "TableSpec", "candidate_intervals", "parse_tolerance"]
+__all__ = ["compile_table", "MAX_POINTS", "TableSpec", "candidate_intervals", "parse_tolerance",
+           "net_stroke_fraction"]
 
 DENSE_LIMIT = 2**22  # certify on every master count up to this period
+# A net-stroke table is also measured across the seam of these periods (and the one before each),
+# and at the first and last period whose masters and positions fit int64.
+WRAP_PERIODS = (1, 2, 10**6, 10**9)
+WRAP_WINDOW = 4096  # master counts either side of each seam
+WRAP_SPREAD = 1024  # and this many spread over the period
 _INT32_MAX = 2**31 - 1
 _INT64_LIMIT = 2.0**63 * (1 - 1e-9)  # float bounds carry a relative margin
 # max over tau of |f - p| = h^(n+1) * max|f^(n+1)| * _ERROR_CONSTANT[n]
@@ -98,6 +106,9 @@ def compile_table(
                 f"{value * scale:.6g} counts overflows int32 (limit {_INT32_MAX})"
             )
     job = _Job(profile, master_counts, scale)
+    if abs(job.net) >= 2**31:
+        raise InputError(f"net stroke {profile.net_stroke:+g} {profile.slave_unit} x slave_counts_per_unit {scale:g} "
+                         f"= {float(job.net):.6g} counts per period should be below 2^31 counts")
     if spec.points is not None:
         points = spec.points
         intervals = points - 1
@@ -110,6 +121,21 @@ def compile_table(
         return job.build(KINDS[spec.interp], intervals, certify=certify, progress=progress)
     kinds = list(KINDS.values()) if spec.interp == "auto" else [KINDS[spec.interp]]
     return job.search(kinds, spec.tolerance_counts(profile.slave_unit), certify=certify, progress=progress)
+
+
+def net_stroke_fraction(net_stroke: float, slave_counts_per_unit: float) -> tuple[Fraction, float]:
+    """The net stroke per period in slave counts as the table stores it: a fraction N/D, D < 2^32.
+
+    The cam's net stroke in counts is taken as the two numbers are written (their shortest
+    decimal forms: 360.0 deg x 1000.0001 counts/deg = 360000.036 = 90000009/250 exactly). When
+    that fraction's denominator is below 2^32 it is stored as is, and the lookup never drifts
+    from it; otherwise the closest fraction with such a denominator is stored (0.3333333333333333
+    becomes 1/3), and the difference is the residual (second value, counts per period) that the
+    certificate reports.
+    """
+    exact = Fraction(repr(float(net_stroke))) * Fraction(repr(float(slave_counts_per_unit)))
+    stored = exact if exact.denominator <= MAX_NET_DENOMINATOR else exact.limit_denominator(MAX_NET_DENOMINATOR)
+    return stored, float(abs(stored - exact))
 
 
 def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
@@ -132,6 +158,7 @@ class _Job:
         self.unit = profile.master_period / master_counts  # master user units per count
         self._jumps = None
         self._bounds = {}
+        self.net, self.net_residual = net_stroke_fraction(profile.net_stroke or 0.0, scale)
 
     # derivatives in counts ----------------------------------------------------------------------
     def derivative(self, counts: np.ndarray, order: int, side: str = "right") -> np.ndarray:
@@ -255,7 +282,8 @@ class _Job:
         data = self.point_data(degree, intervals)
         if np.abs(data[0]).max() + 0.5 > _INT32_MAX:
             raise TableFormatError(f"table position {np.abs(data[0]).max():.0f} counts overflows int32")
-        fmt, positions, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, data)
+        fmt, positions, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, data,
+                                                            self.net)
         table = CamTable(fmt, positions, slopes, curvatures)
         return replace(table, certificate=self.certificate(table, data, certify, progress))
 
@@ -282,6 +310,8 @@ class _Job:
             quantization_counts=quant,
             predicted_error_counts=predicted,
             joints_off_points=tuple(off_grid),
+            net_stroke_units=self.profile.net_stroke or 0.0,
+            net_stroke_residual_counts=self.net_residual,
         )
         return certificate.measured(self.measure(table, data, progress)) if certify else certificate
 
@@ -316,6 +346,11 @@ class _Job:
             worst["float"] = max(worst["float"], float(np.abs(_float_interpolant(table, data, counts) - exact).max()))
             if progress:
                 progress(min(start + chunk, total), total)
+        wrap = {}
+        if table.net_stroke:
+            wrap = self.measure_wrap(table)
+            if wrap["wrap_max_error_counts"] > worst["err"]:
+                worst.update(err=wrap["wrap_max_error_counts"], at=wrap["wrap_max_error_at_master_counts"])
         return Measurement(
             evaluated=how,
             evaluated_counts=int(total),
@@ -324,13 +359,57 @@ class _Job:
             max_error_at_master=worst["at"] * self.unit,
             interpolation_error_counts=worst["float"],
             max_slope_error_counts_per_count=worst["slope"],
+            **wrap,
         )
+
+    def wrap_periods(self) -> list[int]:
+        """The periods k (master counts k*M .. k*M + M - 1) a net-stroke table is measured in:
+        those of WRAP_PERIODS, their negatives, the one before each (so each seam is crossed),
+        and the first and last whole period whose masters fit int64 and whose positions fit it
+        with 2^32 to spare (beyond, the lookup is taken modulo 2^64: FORMAT.md step 7)."""
+        M, net = self.M, abs(self.net)
+        by_position = math.floor((2**63 - 2**32) / (net + 1))
+        high = min((2**63 - M) // M, by_position)
+        low = -min(2**63 // M, by_position)
+        wanted = {k for base in WRAP_PERIODS for k in (base, -base)} | {low + 1, high}
+        periods = {p for k in wanted for p in (k - 1, k)}
+        return sorted(p for p in periods if low <= p <= high)
+
+    def measure_wrap(self, table: CamTable) -> dict:
+        """The lookup of a net-stroke table against the profile plus k net strokes (the table's
+        own N/D, exactly), across the seams of :meth:`wrap_periods` and spread over them."""
+        M = self.M
+        window = min(M // 2, WRAP_WINDOW)
+        local = np.unique(np.concatenate([
+            np.arange(0, window), np.arange(M - window, M),
+            np.linspace(0, M - 1, WRAP_SPREAD).round().astype(np.int64)])).astype(np.int64)
+        exact = self.derivative(local.astype(np.float64), 0)
+        num, den = self.net.numerator, self.net.denominator
+        worst, at, periods = -1.0, 0, self.wrap_periods()
+        for k in periods:
+            masters = np.int64(k) * np.int64(M) + local
+            whole, rest = divmod(k * num, den)  # k N/D = whole + rest/D, exactly
+            got = table.lookup(masters) - np.int64(whole)  # both fit int64 (wrap_periods): exact
+            error = np.abs(got.astype(np.float64) - rest / den - exact)
+            i = int(np.argmax(error))
+            if error[i] > worst:
+                worst, at = float(error[i]), int(masters[i])
+        inner = [k for k in WRAP_PERIODS if k in periods and -k in periods]
+        shown = ", ".join(f"+-{k:g}" for k in inner)
+        return {
+            "wrap_evaluated": f"{len(periods) * local.size} master counts: {local.size} in each of the periods "
+                              f"{shown}, the first and last inside int64 ({periods[1]}, {periods[-1]}) and the one "
+                              f"before each ({window} either side of its seam, the rest spread over it)",
+            "wrap_evaluated_counts": len(periods) * int(local.size),
+            "wrap_max_error_counts": worst,
+            "wrap_max_error_at_master_counts": at,
+        }
 
 
 # fixed-point format --------------------------------------------------------------------------
 
 
-def _choose_format(degree, periodic, h, intervals, data):
+def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fraction(0)):
     """Pick position/tau/work/slope/curvature bits as fine as the int64 budget allows; prove it."""
     pow2 = h & (h - 1) == 0
     position_fit = min(30, _fit_bits(data[0]))
@@ -360,7 +439,7 @@ def _choose_format(degree, periodic, h, intervals, data):
             if ok:
                 fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
                                   tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip,
-                                  position_bits)
+                                  position_bits, net.numerator, net.denominator)
                 return (
                     fmt,
                     positions.astype(np.int32),
@@ -436,9 +515,12 @@ def _jump_cost(degree: int, order: int, at: float, h: float) -> float:
 def _quantization_bound(table: CamTable) -> float:
     """Bound, in counts, of everything integer arithmetic adds to the interpolation error:
     stored position rounding (1/2), slope and curvature rounding, Horner floors, tau rounding
-    (non-power-of-two steps) and the final rounding (1/2)."""
+    (non-power-of-two steps), the final rounding (1/2) and, for a net stroke of a fraction of a
+    count per period, its rounding (1/2)."""
     f = table.format
     bound = 0.5 * 2.0**-f.position_bits + (0.5 if f.work_bits else 1.0)  # W = 0: the last shift floors
+    if f.net_stroke_den > 1:
+        bound += 0.5
     if f.degree >= 3:
         bound += 0.5 * 2.0**-f.slope_bits * _basis_peak(f.degree, 1)
     if f.degree == 5:

@@ -357,6 +357,15 @@ class CamProfile:
     table : dict
         Default table format for the compiler (interp, points or tolerance, master_counts,
         slave_counts_per_unit), from the cam file's ``[table]`` section.
+    net_stroke : float, optional
+        For a periodic cam whose slave advances every period (a rotary knife's drum turns 360
+        degrees per cut, an indexing table one station): that advance, in slave units. It must
+        equal what the segments add up to (the last segment's end minus the first one's start),
+        so a stroke entered wrong still shows as an error instead of being taken for the net
+        stroke. The cam is then unrolled: ``profile(x + k * master_period) = profile(x) + k *
+        net_stroke``, and the seam is checked like any joint, the position continuing by the
+        net stroke. None (the default): the slave returns to its start every period, and a
+        position step at the seam is a jump that :meth:`check` reports.
 
     Raises
     ------
@@ -364,7 +373,7 @@ class CamProfile:
         ``<field>: <value> should be <expected>``: a segment that does not start where the one
         before it ends (``segment[2].master_start: 170 should be 180, where segment[1] ends (it
         leaves an overlap)``), a span below 1e-9 of the period, segments that do not end at the
-        period, or a field of the wrong type.
+        period, a net stroke that the segments do not add up to, or a field of the wrong type.
 
     See Also
     --------
@@ -378,6 +387,7 @@ class CamProfile:
     master_unit: str = "deg"
     slave_unit: str = "mm"
     table: dict = field(default_factory=dict)
+    net_stroke: float | None = None
 
     def __post_init__(self):
         segments = self.segments
@@ -412,10 +422,39 @@ class CamProfile:
             raise validate.fail(f"segment[{len(segments) - 1}].master_end", position,
                                 f"{validate.show(period)}, the master_period (it leaves {kind})")
         object.__setattr__(self, "_starts", np.array([s.master_start for s in segments]))
+        self._check_net_stroke()
+
+    def _check_net_stroke(self):
+        """The declared net stroke: a periodic cam's only, and what its segments add up to
+        (the same 1e-12 relative allowance as a position jump, so float sums of decimal strokes
+        pass and any stroke entered wrong does not)."""
+        if self.net_stroke is None:
+            return
+        net = validate.number("net_stroke", _plain(self.net_stroke), minimum=-2 * MAX_SLAVE, maximum=2 * MAX_SLAVE)
+        object.__setattr__(self, "net_stroke", net)
+        if not self.periodic:
+            raise validate.fail("net_stroke", net, "absent for a cam that is not periodic (it does not repeat, "
+                                "so it has no advance per period)")
+        first, last = self.segments[0], self.segments[-1]
+        advance = self.advance
+        scale = max(abs(first.slave_start), abs(last.slave_end), abs(net),
+                    max(abs(seg.stroke) for seg in self.segments))
+        if abs(advance - net) > 1e-12 * scale:
+            raise validate.fail("net_stroke", net, f"{advance:+.12g}, what the segments add up to (the slave starts "
+                                f"the period at {validate.show(first.slave_start)} and ends it at "
+                                f"{validate.show(last.slave_end)}): correct a stroke or the net stroke")
+
+    @property
+    def advance(self) -> float:
+        """How far the slave ends each period from where it starts it: the last segment's end
+        minus the first one's start (slave units). A periodic cam that declares no
+        :attr:`net_stroke` should have 0 here, else :meth:`check` reports a jump at the seam."""
+        return self.segments[-1].slave_end - self.segments[0].slave_start
 
     @classmethod
     def from_segments(cls, segments, master_period=None, *, start=0.0, periodic: bool = True, name: str = "",
-                      master_unit: str = "deg", slave_unit: str = "mm", table=None) -> "CamProfile":
+                      master_unit: str = "deg", slave_unit: str = "mm", table=None,
+                      net_stroke=None) -> "CamProfile":
         """A profile from segments placed one after another, from master 0 and slave ``start``.
 
         Each segment keeps its span, stroke, law and name; where it was placed is ignored.
@@ -432,6 +471,9 @@ class CamProfile:
             Slave position at master 0 (slave units).
         periodic, name, master_unit, slave_unit, table
             As for :class:`CamProfile`.
+        net_stroke : float, optional
+            The slave's advance per period, as for :class:`CamProfile`: it must equal the
+            strokes added up.
 
         Examples
         --------
@@ -443,6 +485,17 @@ class CamProfile:
         ... ])
         >>> cam.master_period, cam(180.0)
         (360.0, 10.0)
+
+        A rotary knife: the drum turns once per cut, the cut synchronous at 1.2 deg/deg.
+
+        >>> knife = CamProfile.from_segments([
+        ...     Segment.from_span(30.0, 36.0, "constant_velocity", "cut"),
+        ...     Segment.polynomial(0.0, 300.0, 0.0, 288.0, start_velocity=1.2, end_velocity=1.2,
+        ...                        start_jerk=0.0, end_jerk=0.0, name="catch-up"),
+        ...     Segment.from_span(30.0, 36.0, "constant_velocity", "cut"),
+        ... ], slave_unit="deg", net_stroke=360.0)
+        >>> knife(360.0 + 30.0), knife.check().ok
+        (396.0, True)
         """
         if isinstance(segments, (str, bytes, Mapping)) or not hasattr(segments, "__iter__"):
             raise validate.fail("segments", segments, "a sequence of Segment")
@@ -458,7 +511,8 @@ class CamProfile:
                 raise validate.renamed(exc, lambda f: f"segment[{i}].{f}") from None
             master, slave = placed[-1].master_end, placed[-1].slave_end
         return cls(tuple(placed), master if master_period is None else master_period, periodic, name=name,
-                   master_unit=master_unit, slave_unit=slave_unit, table={} if table is None else table)
+                   master_unit=master_unit, slave_unit=slave_unit, table={} if table is None else table,
+                   net_stroke=net_stroke)
 
     def to_toml(self) -> str:
         """The profile as cam-file text (TOML), which :func:`ecam.load_cam` and
@@ -488,6 +542,8 @@ class CamProfile:
                  f"master_period = {_toml_value('master_period', self.master_period)}",
                  f"periodic = {_toml_value('periodic', self.periodic)}",
                  f"start = {_toml_value('start', self.segments[0].slave_start)}"]
+        if self.net_stroke is not None:
+            lines.append(f"net_stroke = {_toml_value('net_stroke', self.net_stroke)}")
         if self.table:
             lines += ["", "[table]"]
             for key in sorted(self.table):
@@ -529,8 +585,9 @@ class CamProfile:
         Parameters
         ----------
         master : array_like
-            Master position(s) in master units, finite. Periodic cams wrap; a non-periodic cam
-            raises :class:`~ecam.errors.InputError` outside [0, master_period].
+            Master position(s) in master units, finite. Periodic cams wrap (the position
+            continuing by the net stroke per period, when the cam declares one); a non-periodic
+            cam raises :class:`~ecam.errors.InputError` outside [0, master_period].
         order : int
             0 position, 1 velocity (slave units per master unit), 2 acceleration, 3 jerk, ...
         side : {'right', 'left'}
@@ -546,10 +603,18 @@ class CamProfile:
         if not np.all(np.isfinite(x)):
             raise validate.fail("master", float(x[~np.isfinite(x)].flat[0]), "finite")
         period = self.master_period
+        turns = None
         if self.periodic:
-            x = np.mod(x, period)
+            unrolled = order == 0 and bool(self.net_stroke)
+            if unrolled:
+                turns, x = np.divmod(x, period)
+            else:
+                x = np.mod(x, period)
             if side == "left":
-                x = np.where(x == 0.0, period, x)
+                wrap = x == 0.0
+                x = np.where(wrap, period, x)
+                if unrolled:
+                    turns = turns - wrap
         elif np.any((x < 0) | (x > period)):
             bad = x[(x < 0) | (x > period)].flat[0]
             raise validate.fail("master", float(bad), f"in [0, {validate.show(period)}], the range of a "
@@ -562,6 +627,8 @@ class CamProfile:
             mask = index == i
             if mask.any():
                 out[mask] = seg.evaluate(x[mask], order, side)
+        if turns is not None:  # a net stroke per whole period passed
+            out = out + turns * self.net_stroke
         return float(out) if scalar else out
 
     def _snap_to_joints(self, x: np.ndarray) -> np.ndarray:
@@ -598,7 +665,10 @@ class CamProfile:
             for u in seg.law.breaks:
                 out.append((seg.master_start + u * seg.span, f"inside {seg.label} (law break)", (i,)))
         if self.periodic:
-            out.append((0.0, f"seam {self.segments[-1].label} -> {self.segments[0].label}", (last, 0)))
+            seam = f"seam {self.segments[-1].label} -> {self.segments[0].label}"
+            if self.net_stroke:
+                seam += f", position continuing by the net stroke {self.net_stroke:+.6g}"
+            out.append((0.0, seam, (last, 0)))
         return out
 
     # continuity ----------------------------------------------------------------------------
@@ -633,6 +703,22 @@ class CamProfile:
         parabolic law) and, for periodic cams, the seam where the period wraps are all checked.
         """
         return CheckReport(tuple(self.jumps(max_order)))
+
+    def peak(self, order: int) -> float:
+        """Largest |d^order y/dx^order| over the period (user units: slave units per master
+        unit^order), sampled densely on each smooth piece, one-sided at its ends: the value a
+        summary shows (:meth:`derivative_bound` is the certified upper bound). A derivative that
+        jumps (e.g. the velocity of a law that starts from rest with a step) is counted on both
+        sides, its jump is not."""
+        order = validate.integer("order", _plain(order), minimum=0)
+        best = 0.0
+        for seg in self.segments:
+            edges = sorted({seg.master_start, seg.master_end,
+                            *(seg.master_start + u * seg.span for u in seg.law.breaks)})
+            for p0, p1 in zip(edges[:-1], edges[1:]):
+                x = np.linspace(p0, p1, 1025)
+                best = max(best, float(np.abs(_piece_values(seg, x, order, p0, p1)).max()))
+        return best
 
     def derivative_bound(self, order: int, lo: float = 0.0, hi: float | None = None) -> float:
         """Upper bound of |d^order y/dx^order| on [lo, hi] (user units), from dense sampling of

@@ -11,13 +11,15 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
 from .certificate import Certificate
 from .errors import InputError, TableFormatError
 
-__all__ = ["TableFormat", "CamTable", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "MAGIC"]
+__all__ = ["TableFormat", "CamTable", "LOADER_STATUS", "loader_proof", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "FORMAT_VERSIONS",
+           "MAGIC", "MAX_NET_DENOMINATOR"]
 
 KINDS = {"linear": 1, "cubic": 3, "quintic": 5}
 # Every name a user may ask for: a kind, or "auto" (the smallest table of any kind within a tolerance).
@@ -25,8 +27,14 @@ INTERPOLATIONS = (*KINDS, "auto")
 _KIND_NAMES = {v: k for k, v in KINDS.items()}
 SLOPE_BITS = 16
 HEADER_BYTES = 64
-FORMAT_VERSION = 1
+# Version 2 adds the net stroke per period (header bytes 48..59). A table without one is written
+# as version 1, byte for byte as before, so every loader of version 1 still reads it.
+FORMAT_VERSION = 2
+FORMAT_VERSIONS = (1, 2)
 MAGIC = b"ECAM"
+# The net stroke is the exact rational net_stroke_num / net_stroke_den counts per period.
+MAX_NET_DENOMINATOR = 2**32 - 1
+_NET = struct.Struct("<qI")  # header bytes 48..59 of version 2
 MAX_MASTER_COUNTS = 2**31
 MAX_STEP_COUNTS = 2**30
 MAX_WORK_BITS = 40
@@ -53,10 +61,22 @@ class TableFormat:
     slope_preshift: int
     tau_recip: int
     position_bits: int = 0
+    net_stroke_num: int = 0
+    net_stroke_den: int = 1
 
     @property
     def interp(self) -> str:
         return _KIND_NAMES[self.degree]
+
+    @property
+    def net_stroke(self) -> Fraction:
+        """Slave counts added per master period: exactly ``net_stroke_num / net_stroke_den``."""
+        return Fraction(self.net_stroke_num, self.net_stroke_den)
+
+    @property
+    def version(self) -> int:
+        """The blob format version this table is written in: 1 without a net stroke, else 2."""
+        return 1 if self.net_stroke_num == 0 else 2
 
     @property
     def values_per_point(self) -> int:
@@ -108,6 +128,9 @@ class TableFormat:
         final = SLOPE_BITS + self.tau_bits + self.work_bits - self.slope_preshift
         if self.slope_preshift < 0 or not 0 <= final <= 63:
             bad("slope_preshift", self.slope_preshift, "such that 0 <= 16 + tau_bits + work_bits - slope_preshift <= 63")
+        rule = _net_stroke_rule(self.periodic, self.net_stroke_num, self.net_stroke_den)
+        if rule:
+            bad("net_stroke", f"{self.net_stroke_num}/{self.net_stroke_den}", rule)
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,6 +197,16 @@ class CamTable:
         return self.format.periodic
 
     @property
+    def net_stroke(self) -> Fraction:
+        """Slave counts the lookup adds per master period passed (exact; 0 for most cams)."""
+        return self.format.net_stroke
+
+    @property
+    def format_version(self) -> int:
+        """The blob format version :meth:`to_bytes` writes: 1, or 2 for a net stroke."""
+        return self.format.version
+
+    @property
     def crc32(self) -> int:
         return zlib.crc32(self._payload())
 
@@ -233,6 +266,14 @@ class CamTable:
         Returns
         -------
         numpy.ndarray of int64 (or int for a scalar), and the slope array if ``with_slope``.
+            A table with a net stroke ``N/D`` counts per period (:attr:`net_stroke`) adds, for
+            the ``k = floor(m / M)`` whole periods passed (negative below 0),
+            ``floor((k N + floor(D/2)) / D)``: ``k N/D`` rounded to nearest, ties up, in exact
+            integers, so nothing accumulates however far the master goes (FORMAT.md, step 7).
+            The result is exact while it fits int64, and taken modulo 2^64 beyond (the C
+            runtime's 64-bit variant; its int32 position is the low 32 bits, as a CiA 402
+            position rolls over). The slope has no net term: it is periodic and continuous
+            across the wrap wherever the cam's velocity is.
         """
         if isinstance(master_counts, (int, np.integer)) and not isinstance(master_counts, (bool, np.bool_)):
             return self._lookup_one(int(master_counts), with_slope)
@@ -254,6 +295,10 @@ class CamTable:
             below, above = np.atleast_1d(outside[0]), np.atleast_1d(outside[1])
             position[below] = self._end_position(0)
             position[above] = self._end_position(-1)
+        elif f.net_stroke_num:
+            turns = np.atleast_1d(np.floor_divide(_as_counts(master_counts), f.master_counts))
+            with np.errstate(over="ignore"):
+                position += net_stroke_term(turns, f.net_stroke_num, f.net_stroke_den)
         position = _unwrap(position, master_counts)
         if not with_slope:
             return position
@@ -277,7 +322,7 @@ class CamTable:
             raise InputError(f"master_counts {m} should fit int64")
         f = self.format
         if f.periodic:
-            local = m % f.master_counts
+            turns, local = divmod(m, f.master_counts)
         elif m < 0 or m >= f.master_counts:
             end = self._end_position(0 if m < 0 else -1)
             return (end, 0) if with_slope else end
@@ -295,6 +340,9 @@ class CamTable:
         for k in range(n - 1, -1, -1):
             r = c[k] + ((r * tau) >> shift)
         position = (r + ((1 << (w - 1)) if w else 0)) >> w
+        if f.net_stroke_num:  # exact in Python integers, then modulo 2^64 as the vector path
+            position += (turns * f.net_stroke_num + f.net_stroke_den // 2) // f.net_stroke_den
+            position = ((position + 2**63) % 2**64) - 2**63
         if not with_slope:
             return position
         q = n * c[n]
@@ -331,55 +379,209 @@ class CamTable:
         """The binary blob of FORMAT.md: 64-byte header (with CRCs) + little-endian payload."""
         f = self.format
         payload = self._payload()
+        # Version 1 (bytes 48..59 zero) unless the table has a net stroke: version 2 stores it there.
+        net = bytes(12) if f.version == 1 else _NET.pack(f.net_stroke_num, f.net_stroke_den)
         header = _HEADER.pack(
-            MAGIC, FORMAT_VERSION, HEADER_BYTES, f.degree, int(f.periodic), f.step_shift, f.tau_bits,
+            MAGIC, f.version, HEADER_BYTES, f.degree, int(f.periodic), f.step_shift, f.tau_bits,
             f.work_bits, f.slope_bits, f.curvature_bits, f.slope_preshift, f.points, f.master_counts,
-            f.step_counts, f.position_bits, bytes(3), f.tau_recip, len(payload), zlib.crc32(payload), bytes(12), 0,
+            f.step_counts, f.position_bits, bytes(3), f.tau_recip, len(payload), zlib.crc32(payload), net, 0,
         )
         header = header[:-4] + struct.pack("<I", zlib.crc32(header[:-4]))
         return header + payload
 
     @classmethod
     def from_bytes(cls, data) -> "CamTable":
-        """Load and validate a blob; any malformed byte raises TableFormatError."""
+        """Load and validate a blob; any malformed byte raises TableFormatError.
+
+        The checks, their order and their decisions are exactly those of the C loader
+        (``ecam_table_init``, FORMAT.md "Loader"): the envelope, every field rule, the length, the
+        payload CRC, then the overflow proof in exact integers for the header's own fields. So
+        both accept the same blobs, and on every accepted blob both lookups agree bit for bit.
+        Each message names the field, the value and the rule, and ends with the C status name.
+        """
         data = bytes(data)
         if len(data) < HEADER_BYTES:
-            raise TableFormatError(f"blob length {len(data)} should be >= the {HEADER_BYTES}-byte header")
+            _reject("ECAM_E_SHORT", f"blob length {len(data)} should be >= the {HEADER_BYTES}-byte header")
         fields = _HEADER.unpack_from(data)
         (magic, version, header_bytes, degree, flags, step_shift, tau_bits, work_bits, slope_bits,
          curvature_bits, preshift, points, master_counts, step_counts, position_bits, reserved, tau_recip,
          payload_bytes, payload_crc, reserved2, header_crc) = fields
         if magic != MAGIC:
-            raise TableFormatError(f"blob magic {magic!r} should be {MAGIC!r}")
-        if version != FORMAT_VERSION:
-            raise TableFormatError(f"blob format_version {version} should be {FORMAT_VERSION}")
+            _reject("ECAM_E_MAGIC", f"blob magic {magic!r} should be {MAGIC!r}")
+        if version not in FORMAT_VERSIONS:
+            _reject("ECAM_E_VERSION", f"blob format_version {version} should be 1 or 2")
         if header_bytes != HEADER_BYTES:
-            raise TableFormatError(f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
+            _reject("ECAM_E_HEADER_SIZE", f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
         if zlib.crc32(data[: HEADER_BYTES - 4]) != header_crc:
-            raise TableFormatError(f"blob header_crc32 0x{header_crc:08x} does not match the header")
-        if flags & ~1 or any(reserved) or any(reserved2):
-            raise TableFormatError(f"blob flags 0x{flags:02x} / reserved bytes should be 0 except the periodic bit")
-        fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
-                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits)
-        fmt.validate()
-        if payload_bytes != fmt.payload_bytes:
-            raise TableFormatError(f"blob payload_bytes {payload_bytes} should be {fmt.payload_bytes}")
+            _reject("ECAM_E_HEADER_CRC", f"blob header_crc32 0x{header_crc:08x} does not match the header")
+        values_per_point = {1: 1, 3: 2, 5: 3}.get(degree)
+        net_num, net_den = 0, 1
+        if version == 2:  # bytes 48..59 hold the net stroke; only 29..31 stay reserved
+            (net_num, net_den), reserved2 = _NET.unpack(reserved2), b""
+        _check_fields(degree, flags, reserved + reserved2, points, master_counts, step_counts, step_shift,
+                      tau_bits, tau_recip, position_bits, work_bits, slope_bits, curvature_bits, preshift,
+                      payload_bytes, values_per_point)
+        rule = _net_stroke_rule(bool(flags & 1), net_num, net_den)
+        if rule:
+            _reject("ECAM_E_NET_STROKE", f"blob net stroke {net_num}/{net_den} counts per period should be {rule}")
         if len(data) != HEADER_BYTES + payload_bytes:
-            raise TableFormatError(f"blob length {len(data)} should be {HEADER_BYTES + payload_bytes}")
+            _reject("ECAM_E_LENGTH", f"blob length {len(data)} should be {HEADER_BYTES + payload_bytes}")
         payload = data[HEADER_BYTES:]
         if zlib.crc32(payload) != payload_crc:
-            raise TableFormatError(f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
+            _reject("ECAM_E_PAYLOAD_CRC", f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
+        fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
+                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits, net_num, net_den)
+        fmt.validate()  # the same rules as _check_fields: never raises here
         arrays = np.frombuffer(payload, dtype="<i4").reshape(fmt.values_per_point, points)
         positions, slopes = arrays[0], arrays[1] if degree >= 3 else None
         curvatures = arrays[2] if degree == 5 else None
-        # The CRCs prove the bytes are intact, not that they came from the compiler: re-prove
-        # that no intermediate can overflow, so every accepted table has exact results.
-        ok, why, least_preshift = overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
-                                                 curvature_bits, work_bits, tau_bits, tau_recip)
-        if not ok or preshift < least_preshift:
-            reason = why or f"slope_preshift {preshift} should be >= {least_preshift}"
-            raise TableFormatError(f"blob could overflow int64 in the lookup: {reason}")
+        # The CRCs prove the bytes are intact, not that they came from the compiler: prove, for the
+        # header's own shifts, that no intermediate can leave int64 and no output int32.
+        failure = loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits,
+                               work_bits, tau_bits, tau_recip, preshift)
+        if failure is not None:
+            _reject(*failure)
         return cls(fmt, positions, slopes, curvatures)
+
+
+# The C loader's status names (firmware_tables/ecam_table.h), for messages and the parity tests.
+LOADER_STATUS = {
+    "ECAM_E_SHORT": -1, "ECAM_E_MAGIC": -2, "ECAM_E_VERSION": -3, "ECAM_E_HEADER_SIZE": -4,
+    "ECAM_E_HEADER_CRC": -5, "ECAM_E_LENGTH": -7, "ECAM_E_PAYLOAD_CRC": -8, "ECAM_E_DEGREE": -10,
+    "ECAM_E_FLAGS": -11, "ECAM_E_RESERVED": -12, "ECAM_E_POINTS": -13, "ECAM_E_MASTER_COUNTS": -14,
+    "ECAM_E_STEP_COUNTS": -15, "ECAM_E_STEP_SHIFT": -16, "ECAM_E_TAU_BITS": -17, "ECAM_E_TAU_RECIP": -18,
+    "ECAM_E_POSITION_BITS": -19, "ECAM_E_WORK_BITS": -20, "ECAM_E_SLOPE_BITS": -21,
+    "ECAM_E_CURVATURE_BITS": -22, "ECAM_E_SLOPE_PRESHIFT": -23, "ECAM_E_PAYLOAD_BYTES": -24,
+    "ECAM_E_POINT_RANGE": -25, "ECAM_E_HORNER_RANGE": -26, "ECAM_E_SUM_RANGE": -27,
+    "ECAM_E_POSITION_RANGE": -28, "ECAM_E_SLOPE_HORNER_RANGE": -29, "ECAM_E_SLOPE_PRODUCT": -30,
+    "ECAM_E_SLOPE_RANGE": -31, "ECAM_E_NET_STROKE": -34,
+}  # fmt: skip
+
+
+def _reject(status: str, message: str):
+    """Raise the loader's TableFormatError; ``status`` (the C code's name) is also its attribute."""
+    error = TableFormatError(f"{message} ({status})")
+    error.status = status
+    raise error
+
+
+def _check_fields(degree, flags, reserved, points, master_counts, step_counts, step_shift, tau_bits, tau_recip,
+                  position_bits, work_bits, slope_bits, curvature_bits, preshift, payload_bytes, values_per_point):
+    """The field rules of FORMAT.md in the C loader's order (each rule's own status)."""
+    if values_per_point is None:
+        _reject("ECAM_E_DEGREE", f"blob degree {degree} should be 1, 3 or 5")
+    if flags & ~1:
+        _reject("ECAM_E_FLAGS", f"blob flags 0x{flags:02x} should have no bit but bit 0 (periodic)")
+    if any(reserved):
+        _reject("ECAM_E_RESERVED", "blob reserved bytes 29..31 (and 48..59 in version 1) should be 0")
+    if points < 2:
+        _reject("ECAM_E_POINTS", f"blob points {points} should be >= 2")
+    if not 2 <= master_counts <= MAX_MASTER_COUNTS:
+        _reject("ECAM_E_MASTER_COUNTS", f"blob master_counts {master_counts} should be in 2..{MAX_MASTER_COUNTS}")
+    if not 1 <= step_counts <= MAX_STEP_COUNTS or (points - 1) * step_counts != master_counts:
+        _reject("ECAM_E_STEP_COUNTS", f"blob step_counts {step_counts} should be in 1..{MAX_STEP_COUNTS} "
+                f"with (points - 1) * step_counts = master_counts {master_counts} (points {points})")
+    pow2 = step_counts & (step_counts - 1) == 0
+    k = step_counts.bit_length() - 1
+    if step_shift != (k if pow2 else -1):
+        _reject("ECAM_E_STEP_SHIFT", f"blob step_shift {step_shift} should be {k if pow2 else -1} "
+                f"for step_counts {step_counts}")
+    need = (step_counts - 1).bit_length()
+    if tau_bits > 30 or step_counts > 1 << tau_bits or (pow2 and tau_bits != k):
+        rule = f"{k}" if pow2 else f"in {need}..30"
+        _reject("ECAM_E_TAU_BITS", f"blob tau_bits {tau_bits} should be {rule} for step_counts {step_counts}")
+    if tau_recip != -(-(1 << (32 + tau_bits)) // step_counts):
+        _reject("ECAM_E_TAU_RECIP", f"blob tau_recip {tau_recip} should be ceil(2^(32+tau_bits)/step_counts)")
+    if position_bits > 30:
+        _reject("ECAM_E_POSITION_BITS", f"blob position_bits {position_bits} should be in 0..30")
+    if not position_bits <= work_bits <= MAX_WORK_BITS or (degree == 1 and work_bits != position_bits):
+        rule = f"position_bits = {position_bits} for linear" if degree == 1 else f"in {position_bits}..{MAX_WORK_BITS}"
+        _reject("ECAM_E_WORK_BITS", f"blob work_bits {work_bits} should be {rule}")
+    if slope_bits > work_bits or (degree == 1 and slope_bits):
+        _reject("ECAM_E_SLOPE_BITS", f"blob slope_bits {slope_bits} should be "
+                f"{'0 for linear' if degree == 1 else f'in 0..work_bits = {work_bits}'}")
+    if curvature_bits > work_bits or (degree != 5 and curvature_bits):
+        _reject("ECAM_E_CURVATURE_BITS", f"blob curvature_bits {curvature_bits} should be "
+                f"{'0 unless quintic' if degree != 5 else f'in 0..work_bits = {work_bits}'}")
+    scaled = SLOPE_BITS + tau_bits + work_bits
+    if not 0 <= scaled - preshift <= 63:
+        _reject("ECAM_E_SLOPE_PRESHIFT", f"blob slope_preshift {preshift} should be in {max(0, scaled - 63)}..{scaled} "
+                "(16 + tau_bits + work_bits - slope_preshift in 0..63)")
+    if payload_bytes != points * 4 * values_per_point:
+        _reject("ECAM_E_PAYLOAD_BYTES", f"blob payload_bytes {payload_bytes} should be {points * 4 * values_per_point}")
+
+
+# Bernstein coefficients of step 5's polynomial on [0, 1], times Dn = lcm C(n, k):
+# Dn * B_j = Dn * Y0 + sum_k weight[j][k] * c_k with weight = C(j, k) * Dn / C(n, k).
+_BERNSTEIN = {
+    1: (1, ((), (1,))),
+    3: (3, ((), (1,), (2, 1), (3, 3, 3))),
+    5: (10, ((), (2,), (4, 1), (6, 3, 1), (8, 6, 4, 2), (10, 10, 10, 10, 10))),
+}
+
+
+def loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits,
+                 tau_bits, tau_recip, slope_preshift):
+    """The loader's overflow proof (FORMAT.md "Overflow proof"), in exact integers: None when every
+    lookup of the table keeps its intermediates inside int64 and both outputs inside
+    -(2^31 - 1)..2^31 - 1, else (status, message) of the first failing rule, interval by interval,
+    rule by rule, exactly as the C loader decides. The compiler's float proof (:func:`overflow_proof`)
+    implies this one."""
+    n = degree
+    two63 = 1 << 63
+    tau_max = (1 << tau_bits) - 1
+
+    def exact(array, bits):
+        return None if array is None else np.array([int(v) << (work_bits - bits) for v in array.tolist()], dtype=object)
+
+    y = exact(positions, position_bits)
+    c = hermite_coefficients(degree, y, exact(slopes, slope_bits), exact(curvatures, curvature_bits))
+    y0, y1 = y[:-1], y[1:]
+    magnitude = [np.abs(ck) for ck in c]  # |c_1| .. |c_n|
+    failures = {}  # status -> (bool per interval, what it checks)
+    point_limit = 1 << 62
+    failures["ECAM_E_POINT_RANGE"] = ((np.abs(y0) >= point_limit) | (np.abs(y1) >= point_limit),
+                                      f"|position x 2^{work_bits - position_bits}| should be < 2^62")
+    bad = np.zeros(y0.shape, dtype=bool)
+    r = magnitude[n - 1]
+    bad |= r * tau_max >= two63
+    for k in range(n - 1, 0, -1):
+        r = magnitude[k - 1] + r + 1
+        bad |= r * tau_max >= two63
+    failures["ECAM_E_HORNER_RANGE"] = (bad, f"every position Horner product (x tau <= {tau_max}) should be < 2^63")
+    failures["ECAM_E_SUM_RANGE"] = (np.abs(y0) + r + (1 << work_bits) >= two63,
+                                    "the final position sum should stay < 2^63")
+    scale, weights = _BERNSTEIN[n]
+    reach_limit = scale * (2**31 - 1) << work_bits
+    bad = np.zeros(y0.shape, dtype=bool)
+    for row in weights:
+        b = scale * y0
+        for k, weight in enumerate(row, start=1):
+            b = b + weight * c[k - 1]
+        bad |= np.abs(b) + scale * n > reach_limit
+    failures["ECAM_E_POSITION_RANGE"] = (bad, "the position should stay within -(2^31 - 1)..2^31 - 1")
+    bad = np.zeros(y0.shape, dtype=bool)
+    q = n * magnitude[n - 1]
+    for k in range(n - 1, 0, -1):
+        bad |= q * tau_max >= two63
+        q = k * magnitude[k - 1] + q + 1
+    bad |= q >= two63
+    failures["ECAM_E_SLOPE_HORNER_RANGE"] = (bad, f"every slope Horner product (x tau <= {tau_max}) and sum "
+                                                  "should be < 2^63")
+    out_shift = SLOPE_BITS + tau_bits + work_bits - slope_preshift
+    s = -((-q) >> slope_preshift)  # ceil(q / 2^P): the largest |asr(q, P)|
+    product = s * tau_recip
+    failures["ECAM_E_SLOPE_PRODUCT"] = (product >= two63, f"asr(q, slope_preshift {slope_preshift}) x tau_recip "
+                                                          f"{tau_recip} should be < 2^63")
+    failures["ECAM_E_SLOPE_RANGE"] = (product > (2**31 - 1) << out_shift,
+                                      f"the slope should stay within -(2^31 - 1)..2^31 - 1 at slope_preshift "
+                                      f"{slope_preshift}")
+    first = {status: np.flatnonzero(bad.astype(bool)) for status, (bad, _) in failures.items()}
+    found = [(int(where[0]), order, status) for order, (status, where) in enumerate(first.items()) if where.size]
+    if not found:
+        return None
+    interval, _, status = min(found)
+    return status, f"blob could overflow in the lookup: interval {interval}: {failures[status][1]}"
 
 
 def hermite_coefficients(degree, y, s=None, c=None) -> list:
@@ -447,6 +649,8 @@ def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_b
     if reach.max() > _INT32_MAX:
         return False, f"interpolated position may reach {reach.max():.0f} counts, past int32", 0
     q_max = float(q.max())
+    if q_max >= _INT64_LIMIT:
+        return False, f"slope Horner sum {q_max:.4g} exceeds int64 (work_bits {work_bits})", 0
     preshift = max(0, SLOPE_BITS + tau_bits + work_bits - 63)  # keep the final shift <= 63
     while (q_max / 2.0**preshift + 1) * tau_recip >= _INT64_LIMIT:
         preshift += 1
@@ -457,6 +661,38 @@ def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_b
     if slope_peak > _INT32_MAX:
         return False, f"slope may reach {slope_peak:.4g} (Q16 counts per count), past int32", 0
     return True, "", preshift
+
+
+def _net_stroke_rule(periodic: bool, num: int, den: int) -> str:
+    """The rule a net stroke ``num / den`` counts per period breaks, or "" (FORMAT.md, loader
+    rule -34): a reduced fraction with 1 <= den <= 2^32 - 1, less than 2^31 counts per period,
+    and 0/1 unless the table is periodic."""
+    if not 1 <= den <= MAX_NET_DENOMINATOR or not -(2**63) <= num < 2**63:
+        return "an int64 over a denominator in 1..2^32-1"
+    if math.gcd(num, den) != 1:
+        return "a reduced fraction (gcd(|num|, den) = 1; 0/1 for none)"
+    if abs(num) >= den * 2**31:
+        return "less than 2^31 counts per period"
+    if num and not periodic:
+        return "0/1 for a table that is not periodic"
+    return ""
+
+
+def net_stroke_term(turns, num: int, den: int) -> np.ndarray:
+    """``floor((turns * num + floor(den/2)) / den)`` modulo 2^64, for int64 ``turns``, in int64
+    and uint64 words only (FORMAT.md step 7; the C runtime does the same): with
+    ``num = A den + B`` (0 <= B < den) and ``turns = kh den + kl`` (0 <= kl < den), it is
+    ``turns A + kh B + floor((kl B + floor(den/2)) / den)``, whose last product stays below 2^64."""
+    turns = np.asarray(turns, dtype=np.int64)
+    whole, rest = divmod(num, den)
+    with np.errstate(over="ignore"):
+        term = turns * np.int64(whole)
+        if rest:
+            high = np.floor_divide(turns, den)
+            low = (turns - high * den).astype(np.uint64)
+            term += high * np.int64(rest)
+            term += ((low * np.uint64(rest) + np.uint64(den // 2)) // np.uint64(den)).astype(np.int64)
+    return term
 
 
 def _as_counts(master_counts) -> np.ndarray:

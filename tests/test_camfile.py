@@ -178,6 +178,44 @@ def test_extreme_numbers_are_bad_input_not_a_crash(tmp_path, text, message):
     assert len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
 
 
+INDEX = """
+name = "index"
+slave_unit = "deg"
+master_period = 360.0
+net_stroke = 45.0
+[[segment]]
+name = "index"
+law = "modified_sine"
+span = 240.0
+stroke = 45.0
+[[segment]]
+law = "dwell"
+span = 120.0
+"""
+
+
+def test_net_stroke_in_a_file(tmp_path):
+    profile = ecam.load_cam(write(tmp_path, INDEX))
+    assert profile.net_stroke == 45.0 and profile.check().ok and profile(720.0) == 90.0
+
+
+@pytest.mark.parametrize("change, message", [
+    (("net_stroke = 45.0", 'net_stroke = "45 deg"'), "net_stroke: '45 deg' should be a number"),
+    (("net_stroke = 45.0", "net_stroke = 40.0"), "net_stroke: 40 should be +45, what the segments add up to (the "
+                                                 "slave starts the period at 0 and ends it at 45)"),
+    (("span = 240.0\nstroke = 45.0", "span = 240.0\nstroke = 4.5"), "net_stroke: 45 should be +4.5, what the "
+                                                                    "segments add up to"),
+    (("net_stroke = 45.0", "net_stroke = 45.0\nperiodic = false"), "net_stroke: 45 should be absent for a cam that "
+                                                                  "is not periodic"),
+    (("net_stroke = 45.0", "net_stroke = 45.0\nnet_strok = 1"), "net_strok: unknown field; expected one of"),
+])
+def test_bad_net_stroke_in_a_file(tmp_path, change, message):
+    path = write(tmp_path, INDEX.replace(*change))
+    with pytest.raises(ecam.CamFileError) as info:
+        ecam.load_cam(path)
+    assert str(info.value).startswith(f"cam {path}: {message}"), str(info.value)
+
+
 def test_table_tolerance_in_counts(tmp_path):
     from ecam import compile_table
 

@@ -95,6 +95,16 @@ def test_seam_position_jump_is_reported():
     assert "seam" in seam[0].where
 
 
+def test_a_declared_net_stroke_makes_the_seam_a_joint():
+    segments = chain([("cycloidal", 90.0, 10.0), ("constant_velocity", 90.0, 0.0)]).segments
+    profile = CamProfile(segments, 180.0, net_stroke=10.0)
+    assert not profile.check().at(0.0, 0)  # the position continues by the net stroke
+    assert [d.order for d in profile.check().at(0.0)] == [d.order for d in chain(
+        [("cycloidal", 90.0, 10.0), ("constant_velocity", 90.0, 0.0)]).check().at(0.0) if d.order > 0]
+    assert profile(180.0) == 10.0 and profile(180.0 + 45.0) == pytest.approx(15.0)
+    assert profile(-90.0) == -10.0 + 10.0 and profile(-135.0) == pytest.approx(-5.0)
+
+
 def test_constant_acceleration_break_inside_the_law():
     profile = chain([("constant_acceleration", 100.0, 10.0), ("constant_velocity", 100.0, -10.0)])
     inner = profile.check().at(50.0, 2)

@@ -73,6 +73,15 @@ def test_from_segments_places_spans_and_strokes_from_zero():
     assert cam.check().continuous(2) and cam(180.0) == 12.0
 
 
+def test_from_segments_takes_a_net_stroke():
+    """An indexing table: one station (45 deg) per cycle, the slave never coming back."""
+    index = CamProfile.from_segments([Segment.from_span(240.0, 45.0, "modified_sine", "index"),
+                                      Segment.from_span(120.0)], slave_unit="deg", net_stroke=45.0)
+    assert index.net_stroke == 45.0 and index.check().ok  # the modified sine's jerk steps are warnings
+    assert index(360.0) == 45.0 and index(8 * 360.0 + 240.0) == 9 * 45.0 and index(-120.0) == 0.0
+    assert CamProfile.from_segments([Segment.from_span(240.0, 45.0, "modified_sine")]).check().errors[0].order == 0
+
+
 def test_from_segments_ignores_where_a_segment_was_and_checks_the_period():
     moved = Segment(1000.0, 1090.0, 7.0, 17.0, "cycloidal")
     cam = CamProfile.from_segments([moved, Segment.from_span(90.0, -10.0, "cycloidal")], 180.0)
@@ -198,8 +207,12 @@ def profiles(draw):
                                   {"interp": "auto", "tolerance": "2 counts", "master_counts": 2**16,
                                    "slave_counts_per_unit": 1000.0},
                                   {"tolerance": 0.01}]))
-    return CamProfile(tuple(segments), master, draw(st.booleans()), name=draw(st.text(max_size=12)),
-                      master_unit=draw(st.sampled_from(["deg", "rad", "mm"])), slave_unit="mm", table=table), start
+    periodic = draw(st.booleans())
+    # a periodic cam may declare its advance per period as its net stroke (0 included)
+    net_stroke = segments[-1].slave_end - start if periodic and draw(st.booleans()) else None
+    return CamProfile(tuple(segments), master, periodic, name=draw(st.text(max_size=12)),
+                      master_unit=draw(st.sampled_from(["deg", "rad", "mm"])), slave_unit="mm", table=table,
+                      net_stroke=net_stroke), start
 
 
 @given(profiles())
@@ -233,6 +246,12 @@ def test_any_profile_round_trips(drawn):
      "segment[1].master_start: 11 should be 10, where segment[0] ends (it leaves a gap)"),
     (lambda: CamProfile((Segment(0, 1e-12, 0, 1, "cycloidal"), Segment(1e-12, 20, 1, 0, "cycloidal")), 20.0),
      "segment[0].span: 1e-12 should be >= 1e-09 of master_period (2e-08)"),
+    (lambda: CamProfile((Segment(0, 10, 0, 1, "cycloidal"),), 10.0, net_stroke=2.0),
+     "net_stroke: 2 should be +1, what the segments add up to (the slave starts the period at 0 and ends it at 1): "
+     "correct a stroke or the net stroke"),
+    (lambda: CamProfile((Segment(0, 10, 0, 1, "cycloidal"),), 10.0, False, net_stroke=1.0),
+     "net_stroke: 1 should be absent for a cam that is not periodic (it does not repeat, so it has no advance per "
+     "period)"),
     (lambda: ecam.design.modified_sine_cam(50.0)(1.0, order=-1), "order: -1 should be an integer >= 0"),
     (lambda: ecam.design.modified_sine_cam(50.0)(1.0, side="middle"), "side: 'middle' should be one of right, left"),
     (lambda: ecam.design.modified_sine_cam(50.0)([1.0, math.nan]), "master: nan should be finite"),

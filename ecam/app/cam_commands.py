@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+from ecam import validate
 from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
@@ -41,32 +42,104 @@ def _finite(value):
 
 
 # --- check / plot ---------------------------------------------------------------------------------
+# Master units a speed in rpm can be given for: units per revolution.
+_PER_REVOLUTION = {"deg": 360.0, "rad": 2 * math.pi, "rev": 1.0, "turn": 1.0}
+_PER_MINUTE_WORDS = ("periods/min", "cycles/min", "cuts/min", "strokes/min", "/min")
+
+
+def parse_speed(text, profile) -> tuple[float, str]:
+    """``--speed``: master units per second, as (value, how the user gave it).
+
+    A plain number is in master units per second; else a number and a unit: ``<master
+    unit>/s``, ``<master unit>/min``, ``rpm`` (a master in deg, rad or rev) or ``periods/min``
+    (also ``cycles/min``, ``cuts/min``: master periods per minute).
+    """
+    unit = profile.master_unit
+    forms = f"a number > 0 (master {unit} per second) or e.g. '720 {unit}/s', '120 periods/min'"
+    number, _, word = str(text).strip().partition(" ")
+    word = word.strip()
+    try:
+        value = float(number)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise validate.fail("--speed", text, forms)
+    if word in ("", f"{unit}/s"):
+        factor = 1.0
+    elif word == f"{unit}/min":
+        factor = 1 / 60
+    elif word in _PER_MINUTE_WORDS:
+        factor = profile.master_period / 60
+    elif word == "rpm" and unit in _PER_REVOLUTION:
+        factor = _PER_REVOLUTION[unit] / 60
+    else:
+        raise validate.fail("--speed", text, forms + (f" ('rpm' needs a master in deg, rad or rev, not {unit})"
+                                                      if word == "rpm" else ""))
+    return validate.number("--speed", value * factor), f"{value:g} {word}".strip()
+
+
+def check_summary(profile, speed=None) -> dict:
+    """Stroke and peak velocity, acceleration and jerk of a profile, per master unit (slave units
+    per master unit^k) and, given a speed in master units per second, per second."""
+    low, high = profile.slave_range
+    peaks = {name: profile.peak(order) for order, name in enumerate(("position", "velocity", "acceleration",
+                                                                      "jerk")) if order}
+    out = {"net_stroke": profile.net_stroke, "stroke": high - low, "slave_range": [low, high],
+           "peaks_per_master_unit": peaks, "slave_unit": profile.slave_unit, "master_unit": profile.master_unit}
+    if speed is not None:
+        out["speed"] = {"master_units_per_second": speed, "periods_per_minute": 60 * speed / profile.master_period,
+                        **{name: value * speed**order for order, (name, value) in enumerate(peaks.items(), start=1)}}
+    return out
+
+
 def cmd_check(args) -> int:
     profile = load_cam(args.cam)
+    speed = None if getattr(args, "speed", None) is None else parse_speed(args.speed, profile)[0]
     report = profile.check()
     if args.json:
-        print(json.dumps({
+        print(json.dumps(plain({
             "cam": profile.name, "ok": report.ok, "errors": len(report.errors), "warnings": len(report.warnings),
-            "discontinuities": [d.to_dict() for d in report.discontinuities],
-        }, indent=1))
+            "discontinuities": [d.to_dict() for d in report.discontinuities], **check_summary(profile, speed),
+        }), indent=1))
     else:
-        print_check(profile, report)
+        print_check(profile, report, speed)
     return 0 if report.ok else 1
 
 
-def print_check(profile, report):
+def print_check(profile, report, speed=None):
+    """The check as text: the cam, each jump, what is continuous, and a one-line summary of its
+    stroke and peaks (per master unit, and at ``speed`` master units per second) so that a
+    stroke or a unit entered wrong shows."""
+    kind_of = "periodic" if profile.periodic else "not periodic"
+    if profile.net_stroke is not None:
+        kind_of += f", net stroke {profile.net_stroke:+.6g} {profile.slave_unit} per period"
     print(f"{profile.name}: {len(profile.segments)} segments over {profile.master_period:g} {profile.master_unit}"
-          f" ({'periodic' if profile.periodic else 'not periodic'})")
+          f" ({kind_of})")
     if not report.discontinuities:
-        print("  continuous in position, velocity, acceleration and jerk everywhere")
+        seam = " (the seam too, the position continuing by the net stroke)" if profile.net_stroke else ""
+        print(f"  continuous in position, velocity, acceleration and jerk everywhere{seam}")
     for d in report.discontinuities:
         kind = "WARNING" if d.severity == "warning" else "ERROR"
         print(f"  {kind:7s} {d.to_dict()['quantity']:12s} jumps by {d.jump:+.6g} at {d.master:g} "
               f"{profile.master_unit} ({d.where}; {d.left:.6g} -> {d.right:.6g})")
+        if d.order == 0 and d.where.startswith("seam") and profile.net_stroke is None:
+            print(f"          if the slave is meant to advance by {profile.advance:+.6g} {profile.slave_unit} every "
+                  f"period (a rotary knife, an indexing table), say so in the cam file: "
+                  f"net_stroke = {profile.advance!r}")
     orders = ["position", "velocity", "acceleration"]
     ok = [name for k, name in enumerate(orders) if report.continuous(k)]
     print(f"  continuous: {', '.join(ok) if ok else 'nothing'}; "
           f"{len(report.errors)} errors, {len(report.warnings)} warnings")
+    summary = check_summary(profile, speed)
+    s, m = profile.slave_unit, profile.master_unit
+    low, high = summary["slave_range"]
+    v, a, j = summary["peaks_per_master_unit"].values()
+    print(f"  stroke {summary['stroke']:.6g} {s} ({low:.6g} .. {high:.6g}); peak per {m}: velocity {v:.4g} {s}/{m}, "
+          f"acceleration {a:.4g} {s}/{m}^2, jerk {j:.4g} {s}/{m}^3")
+    if speed is not None:
+        at = summary["speed"]
+        print(f"  at {speed:.6g} {m}/s ({at['periods_per_minute']:.4g} periods/min): velocity {at['velocity']:.4g} "
+              f"{s}/s, acceleration {at['acceleration']:.4g} {s}/s^2, jerk {at['jerk']:.4g} {s}/s^3")
 
 
 def cmd_plot(args) -> int:
@@ -121,7 +194,9 @@ def table_summary(table, files) -> dict:
             "predicted_error_units", "predicted_interpolation_counts", "quantization_counts",
             "interpolation_error_counts", "max_error_at_master", "max_error_at_master_counts", "evaluated",
             "master_counts", "step_counts", "slave_counts_per_unit", "joints_off_points", "format",
-            "max_slope_error_counts_per_count", "tolerance_units"]
+            "max_slope_error_counts_per_count", "tolerance_units", "net_stroke_units", "net_stroke_counts",
+            "net_stroke_fraction", "net_stroke_exact", "net_stroke_residual_counts", "format_version",
+            "wrap_evaluated", "wrap_max_error_counts", "wrap_max_error_at_master_counts"]
     out = {k: plain(r[k]) for k in keys if k in r}
     out["files"] = files
     return out
@@ -144,4 +219,14 @@ def certificate_text(name, table) -> str:
         )
     if r["joints_off_points"]:
         lines.append(f"  joints not on table points (their cost is in the bound): {r['joints_off_points']}")
+    if "net_stroke_counts" in r:
+        num, den = r["net_stroke_fraction"]
+        stored = f"{num} counts" if den == 1 else f"{num}/{den} counts (exact, rounded once per lookup)"
+        drift = ("exact" if r["net_stroke_exact"] else
+                 f"{r['net_stroke_residual_counts']:.3g} counts per period off the cam's")
+        lines.append(f"  net stroke {r['net_stroke_units']:+.6g} {unit} per period = {stored}; {drift}; "
+                     f"format version {r['format_version']}")
+        if "wrap_max_error_counts" in r:
+            lines.append(f"  across the seam and at far periods: max error {r['wrap_max_error_counts']:.4g} counts "
+                         f"({r['wrap_evaluated']})")
     return "\n".join(lines)

@@ -104,6 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="report every jump of position, velocity, acceleration (and jerk)")
     p.add_argument("cam", help="cam file (TOML)")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--speed", metavar="SPEED",
+                   help="also give the peaks at this master speed: master units per second, or e.g. "
+                        "'720 deg/s', '120 periods/min', '120 rpm'")
     p.set_defaults(func=cam_commands.cmd_check)
 
     p = sub.add_parser("plot", help="motion diagram: position, velocity, acceleration, jerk")

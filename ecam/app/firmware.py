@@ -15,6 +15,7 @@ import numpy as np
 from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
+from ecam.errors import InputError
 from ecam.export import export_cam, plain, to_c_header, to_json
 
 KINDS = ("linear", "cubic", "quintic")
@@ -72,8 +73,15 @@ def vendor_exports(profile, stem: str) -> dict[str, bytes]:
     files: dict[str, bytes] = {}
     certificates = []
     for fmt, interp in EXPORTS:
-        result = export_cam(profile, fmt, tolerance=tolerance, interp=interp, name=stem)
         label = fmt if interp is None else f"{fmt}-{interp}"
+        try:
+            result = export_cam(profile, fmt, tolerance=tolerance, interp=interp, name=stem)
+        except InputError as exc:
+            if not profile.net_stroke:
+                raise
+            # a format that cannot carry a net stroke: its refusal, with the reason, is the record
+            certificates.append({"format": fmt, "interp": interp, "refused": str(exc)})
+            continue
         relative = f"exports/{stem}.{label}{result.suffix}"
         files[relative] = result.content.encode()
         summary = result.summary()

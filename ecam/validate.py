@@ -18,6 +18,8 @@ import math
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
 
+import numpy as np
+
 from .errors import CamFileError, InputError
 
 # Largest magnitude any user number may have: far beyond every physical quantity here, small
@@ -67,6 +69,15 @@ def renamed(exc: Exception, rename: Callable[[str], str], error=InputError) -> I
     if isinstance(field, str) and text.startswith(field + ":"):
         return _with_field(error(rename(field) + text[len(field):]), rename(field))
     return error(text)
+
+
+def plain(value):
+    """``value``, or the Python number a numpy scalar holds (``numpy.int64(3)`` -> ``3``).
+
+    The checks here take Python numbers only (a ``numpy.float32`` is no ``float``); a caller
+    whose values may come out of numpy arithmetic passes them through this first.
+    """
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def number(field: str, value, *, minimum=None, maximum=None, strict: bool = False,

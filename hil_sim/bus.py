@@ -28,7 +28,7 @@ import canopen
 import numpy as np
 from can.interfaces.virtual import VirtualBus, channels_lock
 
-from ecam.errors import InputError
+from ecam.validate import choice, fail, integer, number, plain, positive
 
 #: Bits of an 11-bit-identifier data frame outside the data field, before stuffing:
 #: SOF 1, identifier 11, RTR 1, IDE 1, r0 1, DLC 4, CRC 15, CRC delimiter 1, ACK slot 1,
@@ -40,6 +40,9 @@ STUFFED_OVERHEAD_BITS = 34
 
 #: Frame kinds the fault injector knows (SYNC, PDOs from the controller, PDOs from the drive).
 FRAME_KINDS = ("sync", "rpdo", "tpdo")
+#: Largest SYNC jitter a fault plan may ask for [s]: a tenth of a second, far beyond any bus
+#: cycle (at most 0.255 s, the 0x60C2 format), so every draw stays a small offset.
+MAX_SYNC_JITTER_S = 0.1
 
 
 def frame_bits(data_length: int, *, stuffing: bool = True) -> int:
@@ -66,8 +69,7 @@ def frame_bits(data_length: int, *, stuffing: bool = True) -> int:
     analysis: refuted, revisited and revised", Real-Time Systems 35, 2007). The stuffed region
     is SOF to the end of the CRC: ``g = 34 + 8 n``. An 8-byte frame is 135 bits, a SYNC 55.
     """
-    if isinstance(data_length, bool) or not isinstance(data_length, int) or not 0 <= data_length <= 8:
-        raise InputError(f"data_length {data_length!r} should be an integer in 0..8")
+    integer("data_length", data_length, minimum=0, maximum=8)
     bits = FRAME_OVERHEAD_BITS + 8 * data_length
     if stuffing:
         bits += (STUFFED_OVERHEAD_BITS + 8 * data_length - 1) // 4
@@ -93,13 +95,9 @@ class BusLoad:
     """
 
     def __init__(self, bitrate: int, cycle_s: float) -> None:
-        if isinstance(bitrate, bool) or not isinstance(bitrate, int) or bitrate <= 0:
-            raise InputError(f"bitrate {bitrate!r} should be an integer > 0 [bit/s]")
-        if not isinstance(cycle_s, (int, float)) or not math.isfinite(cycle_s) or cycle_s <= 0:
-            raise InputError(f"cycle_s {cycle_s!r} should be a finite number > 0 [s]")
-        self.bitrate = bitrate
-        self.cycle_s = float(cycle_s)
-        self.budget_bits = math.floor(bitrate * self.cycle_s + 1e-9)
+        self.bitrate = integer("bitrate", plain(bitrate), minimum=1)
+        self.cycle_s = positive("cycle_s", plain(cycle_s))
+        self.budget_bits = math.floor(self.bitrate * self.cycle_s + 1e-9)
         self._bits_by_length = [frame_bits(n) for n in range(9)]
         self._cycle_bits = 0
         self._cycle_frames = 0
@@ -167,8 +165,14 @@ class Faults:
     delay_cycles : int
         A delayed frame arrives 1..delay_cycles cycles late (uniform), >= 1.
     sync_jitter_s : float
-        The controller's SYNC instants move by a uniform draw in [-jitter, +jitter] [s], >= 0;
-        the set points it sends are sampled at the jittered instant.
+        The controller's SYNC instants move by a uniform draw in [-jitter, +jitter] [s],
+        0..MAX_SYNC_JITTER_S; the set points it sends are sampled at the jittered instant.
+
+    Raises
+    ------
+    InputError
+        A value out of range; the message names the parameter (``drop[1].frame``), the value
+        and what was expected.
     """
 
     seed: int = 0
@@ -180,38 +184,38 @@ class Faults:
     sync_jitter_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InputError(f"faults.seed {self.seed!r} should be an integer >= 0")
-        kinds = tuple(self.kinds)
-        for kind in kinds:
-            if kind not in FRAME_KINDS:
-                raise InputError(f"faults.kinds entry {kind!r} should be one of {', '.join(FRAME_KINDS)}")
-        object.__setattr__(self, "kinds", kinds)
+        def store(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        store("seed", integer("seed", plain(self.seed), minimum=0))
+        kinds = _sequence("kinds", self.kinds, f"a list of {', '.join(FRAME_KINDS)}")
+        store("kinds", tuple(choice(f"kinds[{i}]", kind, FRAME_KINDS)
+                             for i, kind in enumerate(kinds)))
         for name in ("drop_probability", "delay_probability"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
-                raise InputError(f"faults.{name} {value!r} should be a number in 0..1")
-            object.__setattr__(self, name, float(value))
+            store(name, number(name, plain(getattr(self, name)), minimum=0.0, maximum=1.0))
         drops = []
-        for entry in self.drop:
-            if (not isinstance(entry, tuple) or len(entry) != 2 or isinstance(entry[0], bool)
-                    or not isinstance(entry[0], int) or entry[0] < 0 or entry[1] not in FRAME_KINDS):
-                raise InputError(f"faults.drop entry {entry!r} should be (cycle >= 0, one of "
-                                 f"{', '.join(FRAME_KINDS)})")
-            drops.append((entry[0], entry[1]))
-        object.__setattr__(self, "drop", tuple(drops))
-        if isinstance(self.delay_cycles, bool) or not isinstance(self.delay_cycles, int) or self.delay_cycles < 1:
-            raise InputError(f"faults.delay_cycles {self.delay_cycles!r} should be an integer >= 1")
-        jitter = self.sync_jitter_s
-        if isinstance(jitter, bool) or not isinstance(jitter, (int, float)) or not (
-                math.isfinite(jitter) and jitter >= 0.0):
-            raise InputError(f"faults.sync_jitter_s {jitter!r} should be a finite number >= 0 [s]")
-        object.__setattr__(self, "sync_jitter_s", float(jitter))
+        for i, entry in enumerate(_sequence("drop", self.drop, "a list of (cycle, frame) pairs")):
+            if not isinstance(entry, tuple) or len(entry) != 2:
+                raise fail(f"drop[{i}]", entry, f"a pair (cycle >= 0, frame: one of "
+                           f"{', '.join(FRAME_KINDS)})")
+            drops.append((integer(f"drop[{i}].cycle", plain(entry[0]), minimum=0),
+                          choice(f"drop[{i}].frame", entry[1], FRAME_KINDS)))
+        store("drop", tuple(drops))
+        store("delay_cycles", integer("delay_cycles", plain(self.delay_cycles), minimum=1))
+        store("sync_jitter_s", number("sync_jitter_s", plain(self.sync_jitter_s), minimum=0.0,
+                                      maximum=MAX_SYNC_JITTER_S))
 
     @property
     def active(self) -> bool:
         """True if any fault is configured."""
         return bool(self.drop_probability or self.drop or self.delay_probability or self.sync_jitter_s)
+
+
+def _sequence(field: str, value, expected: str) -> tuple:
+    """A tuple or list as a tuple (a string is refused: it is no list of names)."""
+    if not isinstance(value, (tuple, list)):
+        raise fail(field, value, expected)
+    return tuple(value)
 
 
 #: What :meth:`FaultInjector.decide` returns for a frame delivered on time.

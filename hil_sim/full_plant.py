@@ -35,7 +35,7 @@ import numpy as np
 
 from ecam import validate
 from ecam.errors import InputError
-from hil_sim.mechanics import Mechanics
+from ecam.mechanics import Mechanics
 from hil_sim.plant import zero_order_hold
 
 __all__ = ["Effects", "FullPlant", "ARCMIN"]

@@ -18,18 +18,18 @@ from typing import Callable
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from ecam.errors import InputError, SimulationError
+from ecam import validate
+from ecam.errors import SimulationError
+from ecam.validate import fail, integer, plain, show
 
 
-def _real(name: str, value: object, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InputError(f"{name} {value!r} should be a real number")
-    number = float(value)
-    if not math.isfinite(number):
-        raise InputError(f"{name} {number} should be finite")
-    if positive and number <= 0.0:
-        raise InputError(f"{name} {number} should be > 0")
-    return number
+def _number(field: str, value: object, **bounds) -> float:
+    """``value`` (a Python or numpy number) checked by :func:`ecam.validate.number`."""
+    return validate.number(field, plain(value), **bounds)
+
+
+def _positive(field: str, value: object) -> float:
+    return validate.positive(field, plain(value))
 
 
 class _Segment:
@@ -115,7 +115,7 @@ class _Master:
 
     def _evaluate(self, t, order: int):
         if np.ndim(t) == 0:
-            return self._state(_real("t", t))[order]
+            return self._state(_number("t", t))[order]
         times = np.asarray(t, dtype=float)
         return np.array([self._state(float(x))[order] for x in times.ravel()]).reshape(
             times.shape)
@@ -149,13 +149,10 @@ class _Master:
         -------
         ndarray, shape (n_cycles,)
         """
-        if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) \
-                or n_cycles < 0:
-            raise InputError(f"n_cycles {n_cycles!r} should be an integer >= 0")
-        cycle_s = _real("cycle_s", cycle_s, positive=True)
-        if order not in (0, 1, 2):
-            raise InputError(f"order {order!r} should be 0, 1 or 2")
-        values = self._evaluate(np.arange(int(n_cycles)) * cycle_s, order)
+        n_cycles = integer("n_cycles", plain(n_cycles), minimum=0)
+        cycle_s = _positive("cycle_s", cycle_s)
+        order = integer("order", plain(order), minimum=0, maximum=2)
+        values = self._evaluate(np.arange(n_cycles) * cycle_s, order)
         values = np.asarray(values, dtype=float).reshape(-1)
         return np.rint(values).astype(np.int64) if order == 0 else values
 
@@ -172,8 +169,8 @@ class ConstantSpeed(_Master):
     """
 
     def __init__(self, speed: float, start_position: float = 0.0) -> None:
-        self.speed = _real("speed", speed)
-        self.start_position = _real("start_position", start_position)
+        self.speed = _number("speed", speed)
+        self.start_position = _number("start_position", start_position)
 
     def _state(self, t: float) -> tuple[float, float, float]:
         return (self.start_position + self.speed * t, self.speed, 0.0)
@@ -221,15 +218,13 @@ class StartStop(_Master):
     def __init__(self, speed: float, max_acceleration: float, max_jerk: float,
                  start_s: float = 0.0, stop_s: float | None = None,
                  start_position: float = 0.0) -> None:
-        self.speed = _real("speed", speed)
+        self.speed = _number("speed", speed)
         if self.speed == 0.0:
-            raise InputError("speed 0.0 should be non-zero")
-        self.max_acceleration = _real("max_acceleration", max_acceleration, positive=True)
-        self.max_jerk = _real("max_jerk", max_jerk, positive=True)
-        self.start_s = _real("start_s", start_s)
-        if self.start_s < 0.0:
-            raise InputError(f"start_s {self.start_s} should be >= 0")
-        self.start_position = _real("start_position", start_position)
+            raise fail("speed", self.speed, "non-zero")
+        self.max_acceleration = _positive("max_acceleration", max_acceleration)
+        self.max_jerk = _positive("max_jerk", max_jerk)
+        self.start_s = _number("start_s", start_s, minimum=0.0)
+        self.start_position = _number("start_position", start_position)
         scale = abs(self.speed)
         limits = (2.0 * scale, self.max_acceleration, self.max_jerk)
         self._up = _Segment("start ramp", self.start_position, scale,
@@ -240,9 +235,9 @@ class StartStop(_Master):
         self.stop_s = None
         self.stopped_s = None
         if stop_s is not None:
-            self.stop_s = _real("stop_s", stop_s)
+            self.stop_s = _number("stop_s", stop_s)
             if self.stop_s < self.start_s:
-                raise InputError(f"stop_s {self.stop_s} should be >= start_s {self.start_s}")
+                raise fail("stop_s", self.stop_s, f">= start_s {show(self.start_s)}")
             state = self._running(self.stop_s)
             self._down = _Segment("stop ramp", state[0], scale, state, (0.0, 0.0, 0.0), limits,
                                   ControlInterface.Velocity)
@@ -317,10 +312,9 @@ class CamIn(_Master):
         order : int
             0, 1 or 2: position [slave counts], d/dmaster, d2/dmaster2.
         """
-        if order not in (0, 1, 2):
-            raise InputError(f"order {order!r} should be 0, 1 or 2")
+        order = integer("order", plain(order), minimum=0, maximum=2)
         speed = self.master.speed
-        t = (_real("master_position", master_position) - self.master.start_position) / speed
+        t = (_number("master_position", master_position) - self.master.start_position) / speed
         return self._state(t)[order] / speed**order
 
 
@@ -368,27 +362,29 @@ def cam_in(cam: Cam, slave_position: float, master_position: float, master_speed
         or ruckig failed.
     """
     if not callable(cam):
-        raise InputError(f"cam {cam!r} should be callable as cam(master, order)")
-    slave_position = _real("slave_position", slave_position)
-    master = ConstantSpeed(master_speed, master_position)
-    if master.speed == 0.0:
-        raise InputError("master_speed 0.0 should be non-zero")
-    engage = _real("engage_master_position", engage_master_position)
-    limits = tuple(_real(name, value, positive=True) for name, value in (
+        raise fail("cam", cam, "callable as cam(master, order)")
+    slave_position = _number("slave_position", slave_position)
+    master_speed = _number("master_speed", master_speed)
+    if master_speed == 0.0:
+        raise fail("master_speed", master_speed, "non-zero")
+    master = ConstantSpeed(master_speed, _number("master_position", master_position))
+    engage = _number("engage_master_position", engage_master_position)
+    limits = tuple(_positive(name, value) for name, value in (
         ("max_velocity", max_velocity), ("max_acceleration", max_acceleration),
         ("max_jerk", max_jerk)))
     engage_s = (engage - master.start_position) / master.speed
     if not engage_s > 0.0:
-        raise InputError(f"engage_master_position {engage} should lie ahead of master_position "
-                         f"{master.start_position} for master_speed {master.speed}")
+        raise fail("engage_master_position", engage, f"ahead of master_position "
+                   f"{show(master.start_position)} for master_speed {show(master.speed)}")
     speed = master.speed
-    target = (_real("cam position", cam(engage, 0)), _real("cam slope", cam(engage, 1)) * speed,
-              _real("cam curvature", cam(engage, 2)) * speed * speed)
+    position, slope, curvature = (_number(f"cam(engage_master_position, {order})",
+                                        cam(engage, order)) for order in range(3))
+    target = (position, slope * speed, curvature * speed * speed)
     for name, value, limit in (("velocity", target[1], limits[0]),
                                ("acceleration", target[2], limits[1])):
         if abs(value) > limit:
-            raise InputError(f"cam {name} {value} at engage_master_position {engage} should be "
-                             f"<= max_{name} {limit}")
+            raise fail(f"max_{name}", limit, f">= the cam {name} {show(abs(value))} at "
+                       f"engage_master_position {show(engage)}")
     distance = target[0] - slave_position
     direction = math.copysign(1.0, distance) if distance != 0.0 else math.copysign(
         1.0, target[1]) if target[1] != 0.0 else 0.0
@@ -417,10 +413,10 @@ def cam_in(cam: Cam, slave_position: float, master_position: float, master_speed
     if direction == 0.0 and np.max(np.abs(states[:, 1])) > tolerance:
         raise SimulationError("cam-in moves although start and cam state coincide")
     position_range = (float(states[:, 0].min()), float(states[:, 0].max()))
-    if min_position is not None and position_range[0] < _real("min_position", min_position):
+    if min_position is not None and position_range[0] < _number("min_position", min_position):
         raise SimulationError(f"cam-in position {position_range[0]} should be >= min_position "
                               f"{min_position}")
-    if max_position is not None and position_range[1] > _real("max_position", max_position):
+    if max_position is not None and position_range[1] > _number("max_position", max_position):
         raise SimulationError(f"cam-in position {position_range[1]} should be <= max_position "
                               f"{max_position}")
     return CamIn(cam, master, slave_position, engage, segment, position_range)

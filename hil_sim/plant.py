@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ecam.errors import InputError, SimulationError
-from hil_sim.mechanics import Mechanics
+from ecam.mechanics import Mechanics
 
 # Higham (2005), "The scaling and squaring method for the matrix exponential revisited",
 # Table 2.3 / eq. (2.3): coefficients b_0..b_13 of the [13/13] Pade approximant, and the

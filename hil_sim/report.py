@@ -1,4 +1,5 @@
-"""The tracking report of a rig run: checks with limits, JSON, text and plots.
+"""The tracking report of a rig run: checks with limits, JSON and text (the figure is
+:func:`hil_sim.rig.plot.plot_report`).
 
 The JSON (:meth:`Report.to_json`) is deterministic: the same scene gives the same bytes. Wall
 time (real-time factor, where the time went) is measured too, but kept apart under
@@ -8,11 +9,9 @@ time (real-time factor, where the time went) is measured too, but kept apart und
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
+from ecam.export import plain
 
 
 @dataclass(frozen=True)
@@ -162,90 +161,14 @@ class Report:
                          f"analysis {t.get('analysis_s', 0):.3g} s)")
         return "\n".join(lines) + "\n"
 
-    def plot(self, path) -> None:
-        """Save the plots to ``path`` (see :func:`plot_report`)."""
-        plot_report(self, path)
-
-
-def plot_report(report: Report, path) -> None:
-    """Tracking error, coupling torque with its limits, and following error, in one figure.
-
-    matplotlib is imported here, and only here, with the non-interactive Agg backend.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ecam.plot import save_figure
-
-    s = report.series
-    time_s = s["time_s"]
-    units = report.summary.get("units", {})
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), constrained_layout=True)
-    ax = axes[0]
-    ax.plot(time_s, s["tracking_error"], lw=0.8)
-    _limit_lines(ax, _limit(report, "tracking_error"), s["tracking_error"])
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"load tracking error [{units.get('slave', '')}]")
-    ax.set_title(f"{report.scene}: {report.model} model, "
-                 f"{'passed' if report.passed else 'failed'}")
-    ax = axes[1]
-    ax.plot(time_s, s["coupling_torque"], lw=0.8, label="coupling torque")
-    mechanics = report.summary.get("mechanics", {})
-    for key, style in (("coupling_rated_torque", ":"), ("coupling_max_torque", "--")):
-        value = mechanics.get(key)
-        if value:
-            for sign in (1, -1):
-                ax.axhline(sign * value, color="tab:red", ls=style, lw=0.8,
-                           label=key.replace("_", " ") if sign > 0 else None)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("torque [N m]")
-    ax.legend(loc="upper right", fontsize="small")
-    ax = axes[2]
-    ax.plot(s["master_position"], s["following_error"], ".", ms=1.5)
-    _limit_lines(ax, _limit(report, "following_error"), s["following_error"])
-    ax.set_xlabel(f"master position in the cam period [{units.get('master', '')}]")
-    ax.set_ylabel("following error [counts]")
-    save_figure(fig, path)
-
-
-def _limit_lines(ax, limit, data) -> None:
-    """Dashed +-limit lines, unless the limit is so far away that the data would be a flat line
-    (then the limit goes into the legend only)."""
-    if limit is None:
-        return
-    finite = np.abs(np.asarray(data, dtype=float))
-    finite = finite[np.isfinite(finite)]
-    peak = float(finite.max()) if finite.size else 0.0
-    if limit <= 5.0 * peak:
-        for sign in (1, -1):
-            ax.axhline(sign * limit, color="tab:red", ls="--", lw=0.8,
-                       label=f"limit {limit:.4g}" if sign > 0 else None)
-    else:
-        ax.plot([], [], color="tab:red", ls="--", lw=0.8, label=f"limit {limit:.4g} (off scale)")
-    ax.legend(loc="upper right", fontsize="small")
-
-
-def _limit(report: Report, name: str):
-    try:
-        return report.check(name).limit
-    except KeyError:
-        return None
-
 
 def _clean(value):
-    """JSON-ready copy: numpy scalars to Python, floats to 10 significant digits, NaN to None."""
+    """JSON-ready copy (:func:`ecam.export.plain`: numpy scalars to Python, NaN to None) with
+    floats cut to 10 significant digits and keys made strings, so the JSON is the same bytes
+    wherever the last bits of a float differ."""
     if isinstance(value, dict):
         return {str(k): _clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_clean(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        value = float(value)
-        if not math.isfinite(value):
-            return None
-        return float(f"{value:.10g}")
-    return value
+    value = plain(value)
+    return float(f"{value:.10g}") if isinstance(value, float) else value

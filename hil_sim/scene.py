@@ -35,7 +35,7 @@ Layout (units in the names or below; SI unless said otherwise)::
     [drive.gains]                      # optional: bandwidths and/or raw gains
     velocity_bandwidth_hz = 200.0
 
-    [mechanics]                        # hil_sim.mechanics.Mechanics fields, SI
+    [mechanics]                        # ecam.mechanics.Mechanics fields, SI
     motor_inertia = 1.2e-4
     gear_ratio = 0.1
     slave_units_per_load_radian = 1.0  # slave user units per radian of the load shaft
@@ -67,35 +67,39 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from ecam.camfile import CAMS_DIR, load_cam, read_toml
-from ecam.errors import CamFileError, InputError
+from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
-from ecam.table import INTERPOLATIONS
+from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
+from ecam.validate import Fields, fail, show
 from hil_sim.bus import FRAME_KINDS, Faults
-from ecam.validate import show as _show
+from hil_sim.control import MODELS
 
+#: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
+#: How the master moves (``master.profile``).
 PROFILES = ("constant", "start_stop", "cam_in")
-MODELS = ("auto", "rigid", "two_mass")
-INTERPS = INTERPOLATIONS
+#: The ``master`` fields each profile takes besides ``speed``/``speed_rpm`` and ``profile``.
+PROFILE_KEYS = {
+    "constant": (),
+    "start_stop": ("max_acceleration", "max_jerk", "start_s", "stop_s"),
+    "cam_in": ("engage_at", "slave_start", "max_velocity", "slave_max_acceleration",
+               "slave_max_jerk"),
+}
 GAIN_BANDWIDTH_KEYS = ("velocity_bandwidth_hz", "position_bandwidth_hz", "integral_ratio")
 GAIN_KEYS = ("position_kp", "velocity_kp", "velocity_ki", "velocity_feedforward",
              "acceleration_feedforward")
-# Resolution of the slave in counts per user unit: a nanometre encoder on a metre is 1e9, a
-# coarse one on a degree 1e-3; bounds far outside both keep the count arithmetic finite.
 
 # Physical range of each mechanics field [SI]: wide enough for a watch motor and a press, narrow
 # enough that products of them (torques, energies, the plant matrices) stay finite in float64.
-# (Upper bounds; the lower bound is 0, exclusive for POSITIVE_MECHANICS, as the plant needs.)
+# Upper bounds only: the lower bounds (0, exclusive where the plant needs it) are
+# ecam.mechanics.Mechanics' own checks.
 MECHANICS_RANGES = {
     "motor_inertia": 1e4, "load_inertia": 1e6, "gear_ratio": 1e4, "gear_efficiency": 1.0,
     "motor_damping": 1e6, "load_damping": 1e8, "coupling_stiffness": 1e12,
     "coupling_damping": 1e8, "coupling_rated_torque": 1e8, "coupling_max_torque": 1e8,
     "motor_torque_limit": 1e6,
 }
-POSITIVE_MECHANICS = frozenset({"motor_inertia", "gear_ratio", "gear_efficiency",
-                                "coupling_stiffness", "coupling_rated_torque",
-                                "coupling_max_torque", "motor_torque_limit"})
 
 MECHANICS_KEYS = ("motor_inertia", "gear_ratio", "gear_efficiency", "motor_damping",
                   "load_damping", "coupling_stiffness", "coupling_damping", "load_inertia",
@@ -172,14 +176,13 @@ class DriveSpec:
 
 @dataclass(frozen=True)
 class MechanicsSpec:
-    """Keyword arguments of :class:`hil_sim.mechanics.Mechanics`, plus the load scaling."""
+    """Keyword arguments of :class:`ecam.mechanics.Mechanics`, plus the load scaling."""
 
     values: tuple[tuple[str, float | None], ...]
     slave_units_per_load_radian: float = 1.0
 
-    def build(self):
-        """The :class:`~hil_sim.mechanics.Mechanics` (its own checks name the field)."""
-        from hil_sim.mechanics import Mechanics
+    def build(self) -> Mechanics:
+        """The :class:`~ecam.mechanics.Mechanics` (its own checks name the field)."""
         return Mechanics(**dict(self.values))
 
 
@@ -214,7 +217,36 @@ class DurationSpec:
 
 @dataclass(frozen=True)
 class Scene:
-    """A whole rig run, as read from a scene file."""
+    """A whole rig run, as read from a scene file (see the module docstring for the layout).
+
+    Attributes
+    ----------
+    name : str
+        The scene's name (default: the file name without ``.toml``).
+    path : Path or None
+        The scene file (absolute), None for a scene parsed from a mapping.
+    cam_mode : {"controller", "drive"}
+        Where the cam runs: the controller streams CSP targets, or the drive runs the table.
+    master : MasterSpec
+        How the master moves: speed, profile (``constant``, ``start_stop``, ``cam_in``).
+    cam : CamSpec
+        The cam (a file or an in-memory profile, see :meth:`CamSpec.load_profile`) and its
+        table settings.
+    drive : DriveSpec
+        Node id, cycle [s], controller substeps, following-error window [counts], plant
+        model, gains.
+    mechanics : MechanicsSpec
+        Motor, gear, coupling and load (:meth:`MechanicsSpec.build` gives the
+        :class:`~ecam.mechanics.Mechanics`), and slave units per load radian.
+    bus : BusSpec
+        Bitrate [bit/s] and faults (:class:`hil_sim.bus.Faults`).
+    limits : LimitsSpec
+        Limits of the report's checks.
+    duration : DurationSpec
+        How long to run: cycles, seconds or master periods.
+    description : str
+        Free text.
+    """
 
     name: str
     path: Path | None
@@ -234,81 +266,6 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------------------
-class _Reader:
-    """Field access with one-line errors: '<file>: <section.key>: <value> should be ...'."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, where: str, message: str) -> CamFileError:
-        return CamFileError(f"scene {self.source}: {where}: {message}")
-
-    def table(self, raw: dict, key: str, allowed, where: str = "", required: bool = False) -> dict:
-        name = f"{where}{key}"
-        if key not in raw:
-            if required:
-                raise self.fail(name, "missing; expected a table")
-            return {}
-        value = raw[key]
-        if not isinstance(value, dict):
-            raise self.fail(name, f"{_show(value)} should be a table ([{name}])")
-        self.unknown(value, allowed, name + ".")
-        return value
-
-    def unknown(self, raw: dict, allowed, prefix: str) -> None:
-        for key in raw:
-            if key not in allowed:
-                raise self.fail(f"{prefix}{key}", f"unknown field; expected one of "
-                                f"{', '.join(sorted(allowed))}")
-
-    def number(self, raw, key, where, *, required=False, default=None, minimum=None,
-               strict=False, maximum=None):
-        name = f"{where}.{key}" if where else key
-        if key not in raw:
-            if required:
-                raise self.fail(name, "missing; expected a number")
-            return default
-        value = raw[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(name, f"{_show(value)} should be a number")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(name, f"{value!r} should be finite")
-        if minimum is not None and (value <= minimum if strict else value < minimum):
-            raise self.fail(name, f"{value!r} should be {'>' if strict else '>='} {minimum:g}")
-        if maximum is not None and value > maximum:
-            raise self.fail(name, f"{value!r} should be <= {maximum:g}")
-        return value
-
-    def integer(self, raw, key, where, *, required=False, default=None, minimum=None,
-                maximum=None):
-        name = f"{where}.{key}" if where else key
-        if key not in raw:
-            if required:
-                raise self.fail(name, "missing; expected an integer")
-            return default
-        value = raw[key]
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(name, f"{_show(value)} should be an integer")
-        if minimum is not None and value < minimum or maximum is not None and value > maximum:
-            bounds = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
-            raise self.fail(name, f"{value} should be an integer {bounds}")
-        return value
-
-    def choice(self, raw, key, where, choices, default):
-        name = f"{where}.{key}" if where else key
-        value = raw.get(key, default)
-        if value not in choices:
-            raise self.fail(name, f"{_show(value)} should be one of {', '.join(choices)}")
-        return value
-
-    def string(self, raw, key, default):
-        value = raw.get(key, default)
-        if not isinstance(value, str):
-            raise self.fail(key, f"{_show(value)} should be a string")
-        return value
-
-
 def load_scene(path, cam: CamProfile | None = None) -> Scene:
     """Read and validate a scene file.
 
@@ -318,17 +275,24 @@ def load_scene(path, cam: CamProfile | None = None) -> Scene:
         The scene TOML; the cam file inside is resolved relative to it.
     cam : ecam.CamProfile, optional
         A cam built in Python: it replaces the scene's ``cam.file`` (which may then be left
-        out); the scene's other ``[cam]`` settings still apply.
+        out); the scene's other ``[cam]`` settings (interp, points or tolerance, counts) still
+        apply.
 
     Returns
     -------
     Scene
+        The fields a user reads: ``name``, ``cam_mode``, ``master`` (speed, profile),
+        ``cam`` (``cam.load_profile()`` gives the cam), ``drive`` (``cycle_s``, ``substeps``,
+        ``model``), ``mechanics`` (``mechanics.build()``), ``bus``, ``limits``, ``duration``.
 
     Raises
     ------
     CamFileError
         Missing or unreadable file, invalid TOML, or a field out of range; one line naming
-        the field, the value and what was expected.
+        the field, the value and what was expected (``scene x.toml: drive.substeps: 0 should
+        be an integer in 1..1000``).
+    InputError
+        ``cam`` is not an :class:`ecam.CamProfile`.
     """
     path = Path(path)
     data = read_toml(path, "scene file")
@@ -337,144 +301,158 @@ def load_scene(path, cam: CamProfile | None = None) -> Scene:
 
 def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
                 path: Path | None = None, cam: CamProfile | None = None) -> Scene:
-    """Build a :class:`Scene` from a parsed TOML mapping; ``base`` resolves the cam file and
-    ``cam``, an in-memory :class:`ecam.CamProfile`, replaces it (see :func:`load_scene`)."""
-    if cam is not None and not isinstance(cam, CamProfile):
-        raise InputError(f"cam: {type(cam).__name__} should be an ecam.CamProfile")
-    r = _Reader(source)
-    r.unknown(data, {"name", "description", "cam_mode", "master", "cam", "drive", "mechanics",
-                     "bus", "limits", "duration"}, "")
-    name = r.string(data, "name", Path(source).stem)
-    description = r.string(data, "description", "")
-    cam_mode = r.choice(data, "cam_mode", "", CAM_MODES, "controller")
+    """Build a :class:`Scene` from a parsed TOML mapping.
 
-    master = _master(r, data)
+    Parameters
+    ----------
+    data : dict
+        The scene, as ``tomllib`` parses it.
+    base : Path
+        The directory the cam file is resolved against (the scene file's).
+    source : str
+        The scene's name in messages (``scene <source>: ...``) and its default ``name``.
+    path : Path or None
+        Recorded as :attr:`Scene.path`.
+    cam : ecam.CamProfile, optional
+        An in-memory cam replacing ``cam.file``, as in :func:`load_scene`.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    CamFileError, InputError
+        As :func:`load_scene`.
+    """
+    if cam is not None and not isinstance(cam, CamProfile):
+        raise fail("cam", cam, "an ecam.CamProfile")
+    top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "master",
+                                              "cam", "drive", "mechanics", "bus", "limits",
+                                              "duration"})
+    name = top.string("name", default=Path(source).stem)
+    description = top.string("description", default="")
+    cam_mode = top.choice("cam_mode", CAM_MODES, default="controller")
+    master = _master(top)
     if cam_mode == "drive" and master.profile == "cam_in":
-        raise r.fail("cam_mode", "'drive' should be 'controller' for master.profile 'cam_in' "
-                     "(the controller plans the cam-in)")
-    cam = _cam(r, data, base, cam)
-    drive = _drive(r, data)
-    mechanics = _mechanics(r, data)
-    bus = _bus(r, data)
-    limits = _limits(r, data)
-    duration = _duration(r, data)
-    return Scene(name=name, path=path, cam_mode=cam_mode, master=master, cam=cam, drive=drive,
-                 mechanics=mechanics, bus=bus, limits=limits, duration=duration,
+        raise top.error("cam_mode: 'drive' should be 'controller' for master.profile 'cam_in' "
+                        "(the controller plans the cam-in)")
+    return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
+                 cam=_cam(top, base, cam), drive=_drive(top), mechanics=_mechanics(top),
+                 bus=_bus(top), limits=_limits(top), duration=_duration(top),
                  description=description)
 
 
-def _master(r: _Reader, data) -> MasterSpec:
-    keys = {"speed", "speed_rpm", "profile", "max_acceleration", "max_jerk", "start_s",
-            "stop_s", "engage_at", "slave_start", "max_velocity", "slave_max_acceleration",
-            "slave_max_jerk"}
-    raw = r.table(data, "master", keys, required=True)
+def _master(top: Fields) -> MasterSpec:
+    common = ("speed", "speed_rpm", "profile")
+    raw = top.table("master", {*common, *(k for keys in PROFILE_KEYS.values() for k in keys)},
+                    required=True)
     if ("speed" in raw) == ("speed_rpm" in raw):
-        raise r.fail("master", "give exactly one of speed (master units/s) and speed_rpm "
-                     "(master periods per minute)")
-    profile = r.choice(raw, "profile", "master", PROFILES, "constant")
-    allowed = {"constant": set(), "start_stop": {"max_acceleration", "max_jerk", "start_s", "stop_s"},
-               "cam_in": {"engage_at", "slave_start", "max_velocity", "slave_max_acceleration",
-                          "slave_max_jerk"}}[profile]
-    for key in raw:
-        if key not in {"speed", "speed_rpm", "profile"} | allowed:
-            raise r.fail(f"master.{key}", f"does not apply to profile {profile!r}; expected "
-                         f"one of {', '.join(sorted(allowed)) or 'none'}")
+        raise raw.error("master: give exactly one of speed (master units/s) and speed_rpm "
+                        "(master periods per minute)")
+    profile = raw.choice("profile", PROFILES, default="constant")
+    allowed = PROFILE_KEYS[profile]
+    for key in raw.raw:
+        if key not in common + allowed:
+            raise raw.error(f"{raw.name(key)}: does not apply to profile {profile!r}; expected "
+                            f"one of {', '.join(sorted(allowed)) or 'none'}")
     key = "speed" if "speed" in raw else "speed_rpm"
-    speed = r.number(raw, key, "master")
+    speed = raw.number(key)
     if speed == 0.0:
-        raise r.fail(f"master.{key}", "0.0 should be non-zero")
+        raise raw.error(f"{raw.name(key)}: {show(speed)} should be non-zero")
     spec = {key: speed, "profile": profile}
     if profile == "start_stop":
-        spec["max_acceleration"] = r.number(raw, "max_acceleration", "master", required=True,
-                                            minimum=0.0, strict=True)
-        spec["max_jerk"] = r.number(raw, "max_jerk", "master", required=True, minimum=0.0,
-                                    strict=True)
-        spec["start_s"] = r.number(raw, "start_s", "master", default=0.0, minimum=0.0)
-        spec["stop_s"] = r.number(raw, "stop_s", "master", minimum=spec["start_s"])
+        spec["max_acceleration"] = raw.number("max_acceleration", required=True, minimum=0.0,
+                                              strict=True)
+        spec["max_jerk"] = raw.number("max_jerk", required=True, minimum=0.0, strict=True)
+        spec["start_s"] = raw.number("start_s", default=0.0, minimum=0.0)
+        spec["stop_s"] = raw.number("stop_s", minimum=spec["start_s"])
     elif profile == "cam_in":
-        spec["engage_at"] = r.number(raw, "engage_at", "master", required=True)
-        spec["slave_start"] = r.number(raw, "slave_start", "master", default=0.0)
-        spec["max_velocity"] = r.number(raw, "max_velocity", "master", required=True,
-                                        minimum=0.0, strict=True)
-        spec["slave_max_acceleration"] = r.number(raw, "slave_max_acceleration", "master",
-                                                  required=True, minimum=0.0, strict=True)
-        spec["slave_max_jerk"] = r.number(raw, "slave_max_jerk", "master", required=True,
-                                          minimum=0.0, strict=True)
+        spec["engage_at"] = raw.number("engage_at", required=True)
+        spec["slave_start"] = raw.number("slave_start", default=0.0)
+        for limit in ("max_velocity", "slave_max_acceleration", "slave_max_jerk"):
+            spec[limit] = raw.number(limit, required=True, minimum=0.0, strict=True)
     return MasterSpec(**spec)
 
 
-def _cam(r: _Reader, data, base: Path, profile: CamProfile | None = None) -> CamSpec:
-    raw = r.table(data, "cam", {"file", "interp", "points", "tolerance", "master_counts",
-                                "slave_counts_per_unit"}, required=profile is None)
+def _cam(top: Fields, base: Path, profile: CamProfile | None = None) -> CamSpec:
+    raw = top.table("cam", {"file", "interp", "points", "tolerance", "master_counts",
+                            "slave_counts_per_unit"}, required=profile is None)
     if profile is not None:
         file = None
     elif "file" not in raw:
-        raise r.fail("cam.file", "missing; expected the path of a cam TOML file")
-    elif not isinstance(raw["file"], str):
-        raise r.fail("cam.file", f"{_show(raw['file'])} should be a string")
+        raise raw.error(f"{raw.name('file')}: missing; expected the path of a cam TOML file")
     else:
-        file = _cam_file(r, raw["file"], base)
-    interp = raw.get("interp")
-    if interp is not None and interp not in INTERPS:
-        raise r.fail("cam.interp", f"{_show(interp)} should be one of {', '.join(INTERPS)}")
+        file = _cam_file(raw, raw.string("file"), base)
     if "points" in raw and "tolerance" in raw:
-        raise r.fail("cam", "give at most one of points and tolerance")
+        raise raw.error("cam: give at most one of points and tolerance")
     tolerance = raw.get("tolerance")
     if tolerance is not None:
-        try:
+        with raw.calling():
             parse_tolerance(tolerance)  # a number in slave units, or e.g. "2 counts"
-        except InputError:
-            raise r.fail("cam.tolerance", f"{_show(tolerance)} should be a number > 0 in slave units "
-                         "or a string like '2 counts'") from None
     return CamSpec(
-        file=file, interp=interp, profile=profile,
-        points=r.integer(raw, "points", "cam", minimum=2),
+        file=file, profile=profile,
+        interp=raw.choice("interp", INTERPOLATIONS),
+        points=raw.integer("points", minimum=2),
         tolerance=tolerance,
-        master_counts=r.integer(raw, "master_counts", "cam", minimum=2, maximum=2**31),
-        slave_counts_per_unit=r.number(raw, "slave_counts_per_unit", "cam",
-                                       minimum=MIN_COUNTS_PER_UNIT, maximum=MAX_COUNTS_PER_UNIT))
+        master_counts=raw.integer("master_counts", minimum=2, maximum=MAX_MASTER_COUNTS),
+        slave_counts_per_unit=raw.number("slave_counts_per_unit", minimum=MIN_COUNTS_PER_UNIT,
+                                         maximum=MAX_COUNTS_PER_UNIT))
 
 
-def _cam_file(r: _Reader, written: str, base: Path) -> Path:
+def _cam_file(raw: Fields, written: str, base: Path) -> Path:
     """The cam file a scene names, resolved relative to the scene (or a built-in cam)."""
+    name = raw.name("file")
     try:
         file = (base / written).resolve()
     except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
-        raise r.fail("cam.file", f"{written!r} cannot be resolved: {exc}") from None
+        raise raw.error(f"{name}: {show(written)} cannot be resolved: {exc}") from None
     if not file.is_file():
         # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
         # also ecam's built-in cams, found by file name.
         built_in = CAMS_DIR / Path(written).name
         if not built_in.is_file():
-            raise r.fail("cam.file", f"{written!r} does not exist (resolved to {str(file)!r})")
+            raise raw.error(f"{name}: {show(written)} does not exist (resolved to "
+                            f"{show(str(file))})")
         file = built_in.resolve()
     return file
 
 
-def _drive(r: _Reader, data) -> DriveSpec:
-    raw = r.table(data, "drive", {"node_id", "cycle_s", "substeps", "following_error_window",
-                                  "model", "gains"})
-    gains_raw = r.table(raw, "gains", set(GAIN_BANDWIDTH_KEYS + GAIN_KEYS), where="drive.")
-    gains = tuple((key, r.number(gains_raw, key, "drive.gains", minimum=0.0))
+def _drive(top: Fields) -> DriveSpec:
+    raw = top.table("drive", {"node_id", "cycle_s", "substeps", "following_error_window",
+                              "model", "gains"})
+    gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
+    gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
-    cycle_s = r.number(raw, "cycle_s", "drive", default=0.001, minimum=1e-5, maximum=0.255)
+    cycle_s = raw.number("cycle_s", default=0.001, minimum=1e-5, maximum=0.255)
     # 0x60C2 holds the period as value x 10^index with an 8-bit value: it must be representable.
     if interpolation_period(cycle_s) is None:
-        raise r.fail("drive.cycle_s", f"{cycle_s!r} should be n x 10^e s with n in 1..255 "
-                     "(the 0x60C2 format), e.g. 0.001 or 0.0025")
+        raise raw.error(f"{raw.name('cycle_s')}: {show(cycle_s)} should be n x 10^e s with n in "
+                        "1..255 (the 0x60C2 format), e.g. 0.001 or 0.0025")
     return DriveSpec(
-        node_id=r.integer(raw, "node_id", "drive", default=1, minimum=1, maximum=127),
+        node_id=raw.integer("node_id", default=1, minimum=1, maximum=127),
         cycle_s=cycle_s,
-        substeps=r.integer(raw, "substeps", "drive", default=4, minimum=1, maximum=1000),
-        following_error_window=r.integer(raw, "following_error_window", "drive",
-                                         default=100000, minimum=1, maximum=0xFFFFFFFF),
-        model=r.choice(raw, "model", "drive", MODELS, "auto"),
+        substeps=raw.integer("substeps", default=4, minimum=1, maximum=1000),
+        following_error_window=raw.integer("following_error_window", default=100000,
+                                           minimum=1, maximum=0xFFFFFFFF),
+        model=raw.choice("model", MODELS, default="auto"),
         gains=gains)
 
 
 def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
-    """The cycle as CiA 402 object 0x60C2 holds it: (value, index) with value x 10^index ==
-    ``cycle_s`` and value in 1..255 (UNSIGNED8), or None when it has no such form."""
+    """The bus cycle as CiA 402 object 0x60C2 (interpolation time period) holds it.
+
+    Parameters
+    ----------
+    cycle_s : float
+        The cycle [s].
+
+    Returns
+    -------
+    tuple of (int, int) or None
+        ``(value, index)`` with ``value x 10^index == cycle_s``, value in 1..255 (UNSIGNED8)
+        and index in -6..0; None when the cycle has no such form (e.g. 1/3 ms).
+    """
     for index in range(-6, 1):
         value = cycle_s / 10.0**index
         if 1 <= round(value) <= 255 and math.isclose(value, round(value), rel_tol=1e-9):
@@ -482,96 +460,65 @@ def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
     return None
 
 
-def _mechanics(r: _Reader, data) -> MechanicsSpec:
-    raw = r.table(data, "mechanics", set(MECHANICS_KEYS) | {"slave_units_per_load_radian"},
-                  required=True)
+def _mechanics(top: Fields) -> MechanicsSpec:
+    raw = top.table("mechanics", {*MECHANICS_KEYS, "slave_units_per_load_radian"},
+                    required=True)
     values = []
     for key in MECHANICS_KEYS:
-        if key in raw:
-            high = MECHANICS_RANGES[key]
-            values.append((key, r.number(raw, key, "mechanics", minimum=0.0,
-                                         strict=key in POSITIVE_MECHANICS, maximum=high)))
-    if "motor_inertia" not in raw:
-        raise r.fail("mechanics.motor_inertia", "missing; expected a number [kg m^2]")
-    spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=r.number(
-        raw, "slave_units_per_load_radian", "mechanics", default=1.0, minimum=0.0, strict=True))
-    try:
+        value = raw.number(key, required=key == "motor_inertia", maximum=MECHANICS_RANGES[key])
+        if value is not None:
+            values.append((key, value))
+    spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=raw.number(
+        "slave_units_per_load_radian", default=1.0, minimum=0.0, strict=True))
+    with raw.calling():  # the lower bounds and the rules between fields are Mechanics' own
         spec.build()
-    except InputError as exc:
-        raise r.fail("mechanics", str(exc)) from None
     return spec
 
 
-def _bus(r: _Reader, data) -> BusSpec:
-    raw = r.table(data, "bus", {"bitrate", "faults"})
-    bitrate = r.integer(raw, "bitrate", "bus", default=1_000_000, minimum=10_000,
-                        maximum=1_000_000)
-    keys = {f.name for f in fields(Faults)}
-    faults_raw = r.table(raw, "faults", keys, where="bus.")
-    kwargs = {}
-    for key in ("seed", "delay_cycles"):
-        if key in faults_raw:
-            kwargs[key] = r.integer(faults_raw, key, "bus.faults", minimum=0 if key == "seed" else 1)
-    for key in ("drop_probability", "delay_probability"):
-        if key in faults_raw:
-            kwargs[key] = r.number(faults_raw, key, "bus.faults", minimum=0.0, maximum=1.0)
-    if "sync_jitter_s" in faults_raw:
-        kwargs["sync_jitter_s"] = r.number(faults_raw, "sync_jitter_s", "bus.faults",
-                                           minimum=0.0, maximum=0.1)
-    if "kinds" in faults_raw:
-        kinds = faults_raw["kinds"]
-        if not isinstance(kinds, list) or any(k not in FRAME_KINDS for k in kinds):
-            raise r.fail("bus.faults.kinds", f"{_show(kinds)} should be a list of "
-                         f"{', '.join(FRAME_KINDS)}")
-        kwargs["kinds"] = tuple(kinds)
+def _bus(top: Fields) -> BusSpec:
+    raw = top.table("bus", {"bitrate", "faults"})
+    bitrate = raw.integer("bitrate", default=1_000_000, minimum=10_000, maximum=1_000_000)
+    faults_raw = raw.table("faults", {f.name for f in fields(Faults)})
+    # Faults checks its own values; the reader supplies the file's names for its messages.
+    kwargs = {key: value for key, value in faults_raw.raw.items() if key != "drop"}
     if "drop" in faults_raw:
-        drops = faults_raw["drop"]
+        drops = faults_raw.get("drop")
+        name = faults_raw.name("drop")
         if not isinstance(drops, list):
-            raise r.fail("bus.faults.drop", f"{_show(drops)} should be a list of "
-                         "{cycle = N, frame = KIND} tables")
+            raise faults_raw.error(f"{name}: {show(drops)} should be a list of "
+                                   "{cycle = N, frame = KIND} tables")
         entries = []
         for i, entry in enumerate(drops):
-            where = f"bus.faults.drop[{i}]"
-            if not isinstance(entry, dict):
-                raise r.fail(where, f"{_show(entry)} should be a table {{cycle = N, frame = KIND}}")
-            r.unknown(entry, {"cycle", "frame"}, where + ".")
-            cycle = r.integer(entry, "cycle", where, required=True, minimum=0)
-            frame = r.choice(entry, "frame", where, FRAME_KINDS, None)
-            entries.append((cycle, frame))
+            entry = Fields(entry, f"{name}[{i}]", faults_raw.source, {"cycle", "frame"})
+            entries.append((entry.integer("cycle", required=True),
+                            entry.choice("frame", FRAME_KINDS, required=True)))
         kwargs["drop"] = tuple(entries)
-    try:
+    with faults_raw.calling():
         faults = Faults(**kwargs)
-    except InputError as exc:
-        raise r.fail("bus.faults", str(exc)) from None
     return BusSpec(bitrate=bitrate, faults=faults)
 
 
-def _limits(r: _Reader, data) -> LimitsSpec:
-    raw = r.table(data, "limits", {f.name for f in fields(LimitsSpec)}, required=True)
+def _limits(top: Fields) -> LimitsSpec:
+    raw = top.table("limits", {f.name for f in fields(LimitsSpec)}, required=True)
     return LimitsSpec(
-        tracking_error=r.number(raw, "tracking_error", "limits", required=True, minimum=0.0,
-                                strict=True),
-        following_error=r.integer(raw, "following_error", "limits", minimum=1),
-        bus_load_percent=r.number(raw, "bus_load_percent", "limits", default=100.0,
-                                  minimum=0.0, strict=True),
-        wind_up_deg=r.number(raw, "wind_up_deg", "limits", minimum=0.0, strict=True),
-        resonance_excitation_percent=r.number(raw, "resonance_excitation_percent", "limits",
-                                              default=5.0, minimum=0.0),
-        motor_saturation_percent=r.number(raw, "motor_saturation_percent", "limits",
-                                          default=0.0, minimum=0.0, maximum=100.0))
+        tracking_error=raw.number("tracking_error", required=True, minimum=0.0, strict=True),
+        following_error=raw.integer("following_error", minimum=1),
+        bus_load_percent=raw.number("bus_load_percent", default=100.0, minimum=0.0,
+                                    strict=True),
+        wind_up_deg=raw.number("wind_up_deg", minimum=0.0, strict=True),
+        resonance_excitation_percent=raw.number("resonance_excitation_percent", default=5.0,
+                                                minimum=0.0),
+        motor_saturation_percent=raw.number("motor_saturation_percent", default=0.0,
+                                            minimum=0.0, maximum=100.0))
 
 
-def _duration(r: _Reader, data) -> DurationSpec:
-    raw = r.table(data, "duration", {"cycles", "seconds", "master_periods"}, required=True)
-    if len(raw) != 1:
-        raise r.fail("duration", f"{_show(raw)} should give exactly one of cycles, seconds, "
-                     "master_periods")
+def _duration(top: Fields) -> DurationSpec:
+    raw = top.table("duration", {"cycles", "seconds", "master_periods"}, required=True)
+    if len(raw.raw) != 1:
+        raise raw.error(f"duration: {show(dict(raw.raw))} should give exactly one of cycles, "
+                        "seconds, master_periods")
     return DurationSpec(
-        cycles=r.integer(raw, "cycles", "duration", minimum=1, maximum=100_000_000),
-        seconds=r.number(raw, "seconds", "duration", minimum=0.0, strict=True),
-        master_periods=r.number(raw, "master_periods", "duration", minimum=0.0, strict=True))
+        cycles=raw.integer("cycles", minimum=1, maximum=100_000_000),
+        seconds=raw.number("seconds", minimum=0.0, strict=True),
+        master_periods=raw.number("master_periods", minimum=0.0, strict=True))
 
-
-
-
-_interpolation_period = interpolation_period  # the rig's old name, until it imports the public one

@@ -66,7 +66,7 @@ def test_bad_scene_stops_before_any_run(tmp_path, scene_dir):
     bad.write_text(_short_scene("stiff_coupling").replace("tracking_error = 0.002",
                                                           "tracking_error = -1.0"))
     lines = []
-    with pytest.raises(CamFileError, match="limits.tracking_error: -1.0 should be > 0"):
+    with pytest.raises(CamFileError, match="limits.tracking_error: -1 should be > 0"):
         run_scenes([scene_dir, bad], progress=lines.append)
     assert lines == []  # nothing ran
     with pytest.raises(InputError, match="does not exist"):

@@ -7,7 +7,7 @@ import pytest
 
 from ecam.errors import InputError
 from hil_sim.full_plant import ARCMIN, Effects, FullPlant
-from hil_sim.mechanics import Mechanics
+from ecam.mechanics import Mechanics
 from hil_sim.plant import TwoMassPlant
 
 DT = 1e-3 / 16

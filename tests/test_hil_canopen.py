@@ -508,7 +508,7 @@ def test_motor_rated_torque_zero_is_refused_and_the_drive_keeps_running(rig):
 ])
 def test_velocity_offset_saturates_at_integer32(value, expected):
     # 0x60B1 is INTEGER32: a velocity beyond it saturates; wrapping would reverse its sign.
-    assert drv._saturate_int32(value) == expected
+    assert drv.saturate_int32(value) == expected
 
 
 def test_re_enabling_after_a_fault_reset_starts_from_the_actual_position(rig):

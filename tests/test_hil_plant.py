@@ -15,9 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ecam.errors import InputError, SimulationError
+from ecam.mechanics import Mechanics
 from hil_sim.control import Gains, ServoAxis
 from hil_sim.master import ConstantSpeed, StartStop, cam_in
-from hil_sim.mechanics import Mechanics
 from hil_sim.plant import (RigidPlant, TwoMassPlant, choose_model, expm,
                            significant_harmonic_hz, zero_order_hold)
 
@@ -340,23 +340,23 @@ def test_servo_axis_reports_the_model_and_rejects_bad_input():
     assert axis.position_counts == 0 and axis.following_error_counts == 0
     assert set(axis.state) >= {"motor_angle", "load_angle", "twist", "coupling_torque",
                                "motor_torque", "saturated"}
-    with pytest.raises(InputError, match="model 'two_mass' needs coupling_stiffness"):
+    with pytest.raises(InputError, match="model: 'two_mass' should be 'auto' or 'rigid' when mechanics has no coupling_stiffness"):
         ServoAxis(axis_mechanics(None), model="two_mass")
-    with pytest.raises(InputError, match="model 'springy'"):
+    with pytest.raises(InputError, match="model: 'springy' should be one of auto, rigid, two_mass"):
         ServoAxis(axis_mechanics(None), model="springy")
-    with pytest.raises(InputError, match="target_counts 1.5"):
+    with pytest.raises(InputError, match="target_counts: 1.5 should be an integer"):
         axis.cycle(1.5)
-    with pytest.raises(InputError, match="substeps 0"):
+    with pytest.raises(InputError, match="substeps: 0 should be an integer >= 1"):
         ServoAxis(axis_mechanics(None), substeps=0)
 
 
 @pytest.mark.parametrize("field, value, message", [
-    ("coupling_stiffness", -5.0, "coupling_stiffness -5.0 should be > 0"),
-    ("motor_inertia", 0.0, "motor_inertia 0.0 should be > 0"),
-    ("gear_efficiency", 1.2, "gear_efficiency 1.2 should be <= 1"),
-    ("load_damping", -1.0, "load_damping -1.0 should be >= 0"),
-    ("gear_ratio", float("nan"), "gear_ratio nan should be finite"),
-    ("motor_torque_limit", "3", "motor_torque_limit '3' should be a real number"),
+    ("coupling_stiffness", -5.0, "coupling_stiffness: -5 should be > 0"),
+    ("motor_inertia", 0.0, "motor_inertia: 0 should be > 0"),
+    ("gear_efficiency", 1.2, "gear_efficiency: 1.2 should be <= 1"),
+    ("load_damping", -1.0, "load_damping: -1 should be >= 0"),
+    ("gear_ratio", float("nan"), "gear_ratio: nan should be finite"),
+    ("motor_torque_limit", "3", "motor_torque_limit: '3' should be a number"),
 ])
 def test_mechanics_messages_name_field_value_and_bound(field, value, message):
     fields = dict(motor_inertia=1e-4, load_inertia=0.02)
@@ -375,8 +375,10 @@ def test_mechanics_reflection_follows_the_seed():
     expected = math.sqrt(1e4 * (j1 + 0.02) / (j1 * 0.02)) / (2 * math.pi)
     assert m.torsional_frequency_hz() == pytest.approx(expected, rel=1e-15)
     assert Mechanics(motor_inertia=1e-4).torsional_frequency_hz() == math.inf
-    with pytest.raises(InputError, match="coupling_max_torque 1.0 should be >= "):
+    with pytest.raises(InputError, match="coupling_max_torque: 1 should be >= coupling_rated_torque 2"):
         Mechanics(motor_inertia=1e-4, coupling_rated_torque=2.0, coupling_max_torque=1.0)
+    with pytest.raises(InputError, match="load_inertia: 0 should be > 0 when coupling_stiffness"):
+        Mechanics(motor_inertia=1e-4, coupling_stiffness=1e4)
 
 
 # ------------------------------------------------------------------------- master
@@ -424,9 +426,9 @@ def test_master_samples_are_int64_counts():
     assert samples.dtype == np.int64
     assert samples.tolist() == [-3, -2, -1, 1, 2]  # -3 + 1.2345 k, rounded half to even
     assert master.sample(3, 1e-3, order=1).tolist() == [1234.5] * 3
-    with pytest.raises(InputError, match="cycle_s 0.0 should be > 0"):
+    with pytest.raises(InputError, match="cycle_s: 0 should be > 0"):
         master.sample(3, 0.0)
-    with pytest.raises(InputError, match="speed 0.0 should be non-zero"):
+    with pytest.raises(InputError, match="speed: 0 should be non-zero"):
         StartStop(0.0, 1.0, 1.0)
 
 
@@ -519,7 +521,7 @@ def test_cam_in_population_either_plans_cleanly_or_says_why():
 
 def test_cam_in_refuses_what_it_cannot_do():
     limits = (3e7, 1e9, 1e12)
-    with pytest.raises(InputError, match="should lie ahead"):
+    with pytest.raises(InputError, match="engage_master_position: -1 should be ahead of master_position 0 for master_speed 1000000"):
         cam_in(knife_cam, 0.0, 0.0, 1e6, -1.0, *limits)
     with pytest.raises(SimulationError, match="engage further ahead"):
         cam_in(knife_cam, 0.0, 0.0, 1e7, 1e4, *limits)
@@ -531,7 +533,7 @@ def test_cam_in_refuses_what_it_cannot_do():
         # time-optimal answer backs up first, which the check on its profile catches.
         engage = 2.0 * MASTER_PERIOD
         cam_in(knife_cam, knife_cam(engage, 0) - 1000.0, 0.0, 1e6, engage, 3e6, 1e8, 1e11)
-    with pytest.raises(InputError, match="cam velocity"):
+    with pytest.raises(InputError, match="max_velocity: 10000000 should be >= the cam velocity"):
         cam_in(knife_cam, 0.0, 0.0, 1e8, MASTER_PERIOD, 1e7, 1e9, 1e12)
     with pytest.raises(SimulationError, match="max_position"):
         cam_in(knife_cam, 0.0, 0.0, 1e6, 2 * MASTER_PERIOD, *limits,

@@ -11,10 +11,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ecam import mechanics
+from ecam.app.cli import hil_sim_main as main
 from ecam.errors import CamFileError, InputError
 from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, Faults, frame_bits
-from ecam.app.cli import hil_sim_main as main
-from hil_sim.rig import find_max_speed, run_scene
+from hil_sim.rig import analysis, find_max_speed, run_scene
+from hil_sim.rig.cam import compile_cam
+from hil_sim.rig.loop import Record
+from hil_sim.rig.plan import PreparedRun, plan_run
 from hil_sim.scene import DurationSpec, load_scene, parse_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
@@ -125,6 +129,96 @@ def test_start_stop_master_runs():
     assert report.cycles == 1000
 
 
+def test_the_coupling_lines_are_the_core_checks(soft):
+    """The rig reports ecam.mechanics's coupling checks, not formulas of its own."""
+    built = load_scene(SCENES / "soft_coupling.toml").mechanics.build()
+    for core in (mechanics.peak_torque_check(soft.series["peak_coupling_torque"],
+                                             built.coupling_max_torque),
+                 mechanics.rms_torque_check(soft.series["coupling_torque"],
+                                            built.coupling_rated_torque)):
+        line = soft.check(core.name)
+        assert (line.value, line.limit, line.passed, line.unit) == \
+            (core.value, core.limit, core.passed, core.unit)
+    mode_hz = built.torsional_frequency_hz()
+    cam_hz = soft.summary["master"]["cam_frequency_hz"]
+    assert soft.summary["mechanics"]["torsional_harmonic"] == \
+        mechanics.torsional_harmonic(mode_hz, cam_hz)
+
+
+# ---------------------------------------------------------------------------------------------
+# Analysis, check by check, on hand-made records (no bus)
+
+def prepared(name="stiff_coupling", cycles=4):
+    base = short(name, cycles=cycles)
+    cam = compile_cam(base)
+    plan = plan_run(base, cam, np.zeros(cycles), cycles)
+    return PreparedRun(scene=base, cam=cam, mechanics=base.mechanics.build(), plan=plan,
+                       excitation_hz=1.0)
+
+
+def record(cycles=4, **changes):
+    zeros = np.zeros(cycles)
+    fields = dict(cycles=cycles, stopped=None, statusword=zeros, following_error=zeros,
+                  load_angle=zeros, coupling_torque=zeros, peak_coupling_torque=zeros,
+                  peak_twist=zeros, peak_motor_torque=zeros, saturated=zeros, emcy=[],
+                  model="rigid", model_reason="hand-made", setup={"setup_frames": 10},
+                  bus=BusLoad(1_000_000, 0.001).summary(), faults=None)
+    fields.update(changes)
+    return Record(**fields)
+
+
+def test_following_error_check_names_the_worst_cycle_or_the_missing_tpdos():
+    run = prepared()
+    line = analysis.following_error_check(run, record(following_error=np.array(
+        [np.nan, 5.0, -30.0, 2.0])))
+    assert line.value == 30.0 and "cycle 2" in line.detail and line.passed
+    silent = analysis.following_error_check(run, record(following_error=np.full(4, np.nan)))
+    assert silent.value is None and silent.detail == "no TPDO received" and not silent.passed
+
+
+def test_tracking_error_is_load_minus_reference():
+    run = prepared()
+    units = run.scene.mechanics.slave_units_per_load_radian
+    load = (run.plan.reference_units[:4] + np.array([0.0, 0.0, -0.5, 0.1])) / units
+    tracking = analysis.tracking_error(run, record(load_angle=load))
+    line = analysis.tracking_error_check(run, tracking)
+    assert line.value == pytest.approx(0.5, rel=1e-9) and not line.passed
+    assert f"t {3 * run.plan.cycle_s:.6g} s" in line.detail
+
+
+def test_coupling_and_wind_up_checks_on_a_rigid_run():
+    run = prepared()
+    stiffness = run.mechanics.coupling_stiffness
+    peak = mechanics.peak_torque_check(np.array([1.0, 7.0, 3.0, 2.0]),
+                                       run.mechanics.coupling_max_torque)
+    line = analysis.coupling_peak_torque_check(run, peak)
+    assert line.value == 7.0 and line.detail.startswith("at master ")
+    wind_up = analysis.wind_up_check(run, record(peak_twist=np.full(4, 1.0)), peak)
+    # the rigid model measured no twist: peak torque / stiffness, not the (ignored) twist
+    assert wind_up.value == pytest.approx(np.degrees(7.0 / stiffness), rel=1e-12)
+    assert wind_up.detail == "peak torque / stiffness"
+    twisted = analysis.wind_up_check(run, record(model="two_mass", peak_twist=np.full(4, 1e-3)),
+                                     peak)
+    assert twisted.value == pytest.approx(np.degrees(1e-3), rel=1e-12)
+
+
+def test_saturation_bus_and_faults_checks():
+    run = prepared()
+    saturation = analysis.motor_saturation_check(run, record(saturated=np.array([0, 1, 0, 1.0])))
+    assert saturation.value == 50.0 and not saturation.passed
+    faulted = record(emcy=[(0.001, 0x0000), (0.002, 0x8611)])
+    faults = analysis.faults_check(faulted)
+    assert faults.value == 1 and faults.detail == "0x8611 at 0.002 s" and not faults.passed
+    stopped = analysis.faults_check(replace(faulted, stopped="drive fault 0x8611 at cycle 1"))
+    assert stopped.detail == "drive fault 0x8611 at cycle 1"
+    assert analysis.bus_load_check(run, record()).detail == "0 of 0 cycles need more than 1000 bits"
+    report = analysis.analyse(run, record())
+    assert [c.name for c in report.checks] == [
+        "following_error", "tracking_error", "coupling_peak_torque", "coupling_rms_torque",
+        "wind_up", "resonance_excitation", "bus_load", "motor_saturation", "faults"]
+    assert report.summary["bus"]["setup_frames"] == 10
+
+
 # ---------------------------------------------------------------------------------------------
 # Bus load and faults
 
@@ -223,10 +317,10 @@ def test_scene_errors_name_field_value_and_expectation(tmp_path):
     cases = {
         "substeps = 4": ("substeps = 0", "drive.substeps: 0 should be an integer in 1..1000"),
         "bitrate = 1000000": ("bitrate = 1000000\nbaud = 5", "bus.baud: unknown field"),
-        "tracking_error = 0.002 ": ("tracking_error = -1.0 ", "limits.tracking_error: -1.0 should be > 0"),
+        "tracking_error = 0.002 ": ("tracking_error = -1.0 ", "limits.tracking_error: -1 should be > 0"),
         'profile = "constant"': ('profile = "sine"', "master.profile: 'sine' should be one of"),
         "cycle_s = 0.001": ("cycle_s = 0.0003333", "drive.cycle_s: 0.0003333 should be n x 10^e"),
-        "coupling_stiffness = 2.0e6": ("coupling_stiffness = -2.0", "mechanics.coupling_stiffness: -2.0 should be > 0"),
+        "coupling_stiffness = 2.0e6": ("coupling_stiffness = -2.0", "mechanics.coupling_stiffness: -2 should be > 0"),
         "master_periods = 2.0": ("master_periods = 2.0\ncycles = 5", "exactly one of"),
     }
     for old, (new, message) in cases.items():
@@ -269,7 +363,11 @@ def test_cli_bad_input_is_one_line_exit_2(capsys, tmp_path):
     assert err.count("\n") == 1 and "does not exist" in err and "Traceback" not in err
 
 
-def test_a_master_faster_than_half_a_period_per_cycle_is_bad_input(tmp_path):
+@pytest.mark.parametrize("speed,message", [
+    ("1e9", "more than half the cam period"),
+    ("1e300", "master.speed_rpm: 1e+300 should be of magnitude <= 1e+150"),
+])
+def test_a_master_faster_than_half_a_period_per_cycle_is_bad_input(tmp_path, speed, message):
     """An absurd speed is refused before the run (it would alias), not turned into a report."""
     import subprocess
     import sys
@@ -277,12 +375,12 @@ def test_a_master_faster_than_half_a_period_per_cycle_is_bad_input(tmp_path):
 
     scenes = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
     text = (scenes / "stiff_coupling.toml").read_text()
-    text = text.replace("speed_rpm = 60.0", "speed_rpm = 1e300")
+    text = text.replace("speed_rpm = 60.0", f"speed_rpm = {speed}")
     text = text.replace('file = "../../firmware_tables', f'file = "{scenes.parent.parent / "firmware_tables"}')
     scene = tmp_path / "fast.toml"
     scene.write_text(text)
     run = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(scene)], capture_output=True, text=True)
-    assert run.returncode == 2 and "more than half the cam period" in run.stderr
+    assert run.returncode == 2 and message in run.stderr, run.stderr
     assert len(run.stderr.strip().splitlines()) == 1
 
 

@@ -34,12 +34,47 @@ def test_two_mass_frequency():
     assert mechanics.two_mass_frequency(k, j1, j1) == pytest.approx(math.sqrt(2 * k / j1))
 
 
-def test_coupling_checks():
-    checks = mechanics.coupling_check(12.0, rated_torque=10.0, max_torque=20.0, stiffness=1e4,
-                                      excitation_hz=50.0, inertia_1=1e-3, inertia_2=1e-3)
-    by_name = {c["name"]: c for c in checks}
-    assert not by_name["coupling_torque_rated"]["passed"] and by_name["coupling_torque_max"]["passed"]
-    assert by_name["wind_up_angle"]["value"] == pytest.approx(12.0 / 1e4)
+def test_peak_torque_check_finds_the_largest_magnitude():
+    check = mechanics.peak_torque_check([1.0, -12.0, 5.0], 20.0)
+    assert (check.name, check.value, check.limit, check.unit, check.sample) == \
+        ("coupling_peak_torque", 12.0, 20.0, "N m", 1)
+    assert check.passed
+    assert not mechanics.peak_torque_check([1.0, -12.0, 5.0], 10.0).passed
+    unrated = mechanics.peak_torque_check([1.0], None)
+    assert unrated.limit is None and unrated.passed
+
+
+def test_rms_torque_check_measures_the_continuous_load():
+    t = np.linspace(0.0, 1.0, 1000, endpoint=False)
+    check = mechanics.rms_torque_check(12.0 * np.sin(2 * np.pi * 5 * t), 10.0)
+    assert check.value == pytest.approx(12.0 / math.sqrt(2.0), rel=1e-12)
+    assert check.passed  # 8.49 N m RMS although the peak (12 N m) is over the rating
+    assert not mechanics.rms_torque_check([12.0, -12.0], 10.0).passed
+
+
+def test_wind_up_check_in_each_of_its_three_ways():
+    rigid = mechanics.wind_up_check(0.05, stiffness=None, peak_torque=12.0)
+    assert (rigid.value, rigid.detail, rigid.passed) == (0.0, "no coupling", True)
+    computed = mechanics.wind_up_check(0.05, stiffness=1e4, peak_torque=12.0)
+    assert computed.value == pytest.approx(math.degrees(12.0 / 1e4), rel=1e-15)
+    assert computed.detail == "peak torque / stiffness" and not computed.passed
+    measured = mechanics.wind_up_check(None, stiffness=1e4, peak_torque=12.0, twist=[1e-4, -3e-4])
+    assert measured.value == pytest.approx(math.degrees(3e-4), rel=1e-15)
+    assert measured.detail == "coupling twist" and measured.passed  # no limit: informational
+
+
+def test_resonance_excitation_check_reads_the_harmonics_next_to_the_mode():
+    spectrum = np.array([0.0, 10.0, 1.0, 0.5, 0.2])  # harmonics 0..4
+    check = mechanics.resonance_excitation_check(2.5 * 3.0, 3.0, spectrum, 5.0)
+    # mode at 2.5 x the cycle: harmonics 2 and 3, the stronger carries 1/10 of harmonic 1
+    assert check.value == pytest.approx(10.0, rel=1e-15) and not check.passed
+    assert "harmonic 2 carries 10 %" in check.detail and "2.5 x the 3 Hz cam cycle" in check.detail
+    beyond = mechanics.resonance_excitation_check(30.0, 3.0, spectrum, 5.0)
+    assert beyond.value == 0.0 and "above the 4 harmonics resolved" in beyond.detail
+    rigid = mechanics.resonance_excitation_check(math.inf, 3.0, spectrum, 5.0)
+    assert rigid.value is None and rigid.limit is None and rigid.passed
+    assert mechanics.torsional_harmonic(math.inf, 3.0) is None
+    assert mechanics.torsional_harmonic(7.5, 3.0) == 2.5
 
 
 def test_residual_vibration_smaller_for_smoother_laws():
@@ -58,7 +93,7 @@ def test_residual_vibration_smaller_for_smoother_laws():
     lambda: mechanics.two_mass_frequency(float("nan"), 1, 1),
 ])
 def test_bad_values(call):
-    with pytest.raises(InputError):
+    with pytest.raises(InputError, match=r"^\w+: .+ should be "):
         call()
 
 

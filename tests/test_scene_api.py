@@ -52,7 +52,7 @@ def test_without_cam_file_or_in_memory_cam_the_error_names_cam_file():
 def test_a_cam_that_is_not_a_profile_is_one_line():
     with pytest.raises(InputError) as info:
         load_scene(STIFF, cam="knife.toml")
-    assert str(info.value) == "cam: str should be an ecam.CamProfile"
+    assert str(info.value) == "cam: 'knife.toml' should be an ecam.CamProfile"
 
 
 def test_the_in_memory_cam_round_trips_through_a_cam_file(tmp_path):
@@ -60,3 +60,23 @@ def test_the_in_memory_cam_round_trips_through_a_cam_file(tmp_path):
     path = tmp_path / "knife.toml"
     path.write_text(cam.to_toml())
     assert ecam.load_cam(path).segments == cam.segments
+
+
+@pytest.mark.parametrize("table,values,message", [
+    # Faults and Mechanics check their own values; the scene names them as the file does.
+    ("bus", {"faults": {"drop": [{"cycle": -1, "frame": "sync"}]}},
+     "bus.faults.drop[0].cycle: -1 should be an integer >= 0"),
+    ("bus", {"faults": {"kinds": ["sync", "nmt"]}},
+     "bus.faults.kinds[1]: 'nmt' should be one of sync, rpdo, tpdo"),
+    ("bus", {"faults": {"sync_jitter_s": 1.0}}, "bus.faults.sync_jitter_s: 1 should be <= 0.1"),
+    ("mechanics", {"coupling_rated_torque": 2.0, "coupling_max_torque": 1.0},
+     "mechanics.coupling_max_torque: 1 should be >= coupling_rated_torque 2"),
+    ("drive", {"model": "springy"},
+     "drive.model: 'springy' should be one of auto, rigid, two_mass"),
+])
+def test_scene_errors_name_the_files_field(table, values, message):
+    data = tomllib.loads(STIFF.read_text())
+    data.setdefault(table, {}).update(values)
+    with pytest.raises(CamFileError) as info:
+        parse_scene(data, source="x.toml", cam=knife())
+    assert str(info.value) == f"scene x.toml: {message}"

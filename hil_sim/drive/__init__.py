@@ -48,10 +48,9 @@ from hil_sim.drive.emcy import (
     EMCY_FOLLOWING_ERROR, EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION, ERROR_REGISTER_GENERIC,
     ERROR_REGISTER_PROFILE,
 )
-from hil_sim.drive.objects import EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od
-# The names these had in the single-module drive, which the tests use.
-from hil_sim.drive.objects import saturate_int32 as _saturate_int32  # noqa: F401
-from hil_sim.drive.objects import wrap_int32 as _wrap_int32  # noqa: F401
+from hil_sim.drive.objects import (
+    EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od, saturate_int32, wrap_int32,
+)
 from hil_sim.drive.sdo import (
     ABORT_CANNOT_MAP, ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE,
     ABORT_PDO_LENGTH,
@@ -64,5 +63,5 @@ __all__ = [
     "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_FOLLOWING_ERROR",
     "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
     "ERROR_REGISTER_PROFILE", "PROCESS_OBJECTS", "VirtualDrive", "interpolation_period_s",
-    "load_od",
+    "load_od", "saturate_int32", "wrap_int32",
 ]

@@ -34,7 +34,7 @@ from hil_sim.drive.runner import Runner
 from hil_sim.drive.sdo import (
     ABORT_DEVICE_STATE, ABORT_INVALID_VALUE, DriveNode, DriveSdoServer, StoredObjects,
 )
-from hil_sim.mechanics import Mechanics
+from ecam.mechanics import Mechanics
 
 #: Interpolation periods the drive accepts in 0x60C2 [s].
 MIN_INTERPOLATION_PERIOD_S = 1e-5
@@ -63,7 +63,7 @@ class VirtualDrive:
         CANopen node id, 1..127.
     bus : can.BusABC, optional
         A bus of the caller's (then ``channel`` is unused and the caller shuts it down).
-    mechanics : hil_sim.mechanics.Mechanics, optional
+    mechanics : ecam.mechanics.Mechanics, optional
         The axis; default a small servo on a rigid load.
     gains : hil_sim.control.Gains, optional
         Control gains; default :meth:`Gains.from_mechanics` without velocity feed-forward

@@ -7,10 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 
-import ecam
 from ecam.errors import SimulationError
 from hil_sim import SCENES_DIR, plant as plant_module
 from hil_sim.rig import run_scene
+from hil_sim.rig.cam import compile_cam
 from hil_sim.scene import load_scene
 
 from .plan import RIG_CYCLES_HZ, RIG_SCENE
@@ -76,15 +76,8 @@ def _rig_split(scene, report):
     notes = ["canopen = loop time outside the drive's control loop (bus, PDO/SYNC handling); "
              "drive_loop = the drive's servo loop minus plant; lookup and plant measured standalone "
              "for the same cycles"]
-    profile = ecam.load_cam(scene.cam.file)
-    spec = scene.cam
-    kwargs = {"interp": spec.interp, "master_counts": spec.master_counts,
-              "slave_counts_per_unit": spec.slave_counts_per_unit}
-    if spec.points is not None:
-        kwargs["points"] = spec.points
-    if spec.tolerance is not None:
-        kwargs["tolerance"] = spec.tolerance
-    table = ecam.compile_table(profile, certify=False, **kwargs)
+    compiled = compile_cam(scene)  # the rig's own table: what its lookups cost
+    profile, table = compiled.profile, compiled.table
     per_unit = table.master_counts / profile.master_period
     counts_per_cycle = scene.master.units_per_second(profile.master_period) * per_unit * scene.drive.cycle_s
     k = np.arange(report.cycles, dtype=np.float64)

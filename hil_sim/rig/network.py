@@ -1,0 +1,150 @@
+"""The controller's side of the bus: a canopen network in lock-step with one virtual drive, the
+PDO codec, and the set-up a CANopen master does before the first cycle (boot, configuration
+by SDO, table download when the cam runs in the drive, NMT start, CiA 402 enable)."""
+
+from __future__ import annotations
+
+import struct
+
+from ecam.errors import SimulationError
+from hil_sim import cia402
+from hil_sim.bus import BusLoad, SimNetwork, frame_bits
+from hil_sim.drive import CAM_COMMAND_ACTIVATE, VirtualDrive
+from hil_sim.rig.cam import CompiledCam
+from hil_sim.scene import Scene, interpolation_period
+
+# canopen data type -> struct code, for the integer types the drive maps into PDOs.
+# A second copy, wider, lives in hil_sim.drive.pdo: the drive's own, private one. Kept apart
+# for now; one table for both belongs with the object dictionary when that is shared.
+_STRUCT_CODES = {0x02: "b", 0x03: "h", 0x04: "i", 0x05: "B", 0x06: "H", 0x07: "I"}
+
+
+class LockstepMaster(SimNetwork):
+    """A controller's canopen network in lock-step with one :class:`VirtualDrive`.
+
+    Every frame it sends is handled by the drive at once, and the drive's answers are fed to
+    this network before the call returns, so canopen's blocking SDO client, NMT master and
+    ``RemoteNode`` work without threads, sleeps or timeouts; ``master.sync.transmit()`` runs
+    the drive one interpolation period. Frames are stamped with the drive's simulated time.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The controller's bus, on the drive's channel.
+    drive : VirtualDrive
+    load : BusLoad, optional
+        Counts the bits of every frame sent or received.
+
+    Examples
+    --------
+    >>> master = LockstepMaster(open_virtual_bus("demo"), drive)      # doctest: +SKIP
+    >>> node = master.add_node(canopen.RemoteNode(1, str(EDS_PATH)))  # doctest: +SKIP
+    >>> drive.boot(); master.settle(); node.sdo[0x6041].raw           # doctest: +SKIP
+    576
+    """
+
+    def __init__(self, bus, drive: VirtualDrive, load: BusLoad | None = None) -> None:
+        super().__init__(bus, lambda: drive.time_s)
+        self.drive = drive
+        self.load = load if load is not None else BusLoad(1_000_000, drive.cycle_s)
+        self.frames = 0
+
+    def send_message(self, can_id, data, remote=False):
+        super().send_message(can_id, data, remote)
+        self._count(len(data))
+        self.settle()
+
+    def _count(self, length: int) -> None:
+        self.frames += 1
+        self.load.add_frame(length)
+
+    def settle(self) -> None:
+        """Let the drive handle what was sent, then handle what it answered."""
+        self.drive.process()
+        while True:
+            msg = self.bus.recv(timeout=0)
+            if msg is None:
+                return
+            self._count(msg.dlc)
+            self.notify(msg.arbitration_id, msg.data, msg.timestamp)
+
+
+def pdo_codec(pdo_map) -> tuple[struct.Struct, list[int]]:
+    """The struct packing a PDO's mapped objects, and their indexes in mapping order."""
+    codes = "<" + "".join(_STRUCT_CODES[var.od.data_type] for var in pdo_map.map)
+    return struct.Struct(codes), [var.index for var in pdo_map.map]
+
+
+def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualDrive,
+                 cam: CompiledCam) -> dict:
+    """Boot, configure and enable the drive the way a CANopen master does.
+
+    Returns
+    -------
+    dict
+        ``setup_frames`` (frames on the bus until enabled) and, drive-side, ``download``
+        (``bytes``, ``frames``, ``seconds_at_bitrate`` of the table download).
+
+    Raises
+    ------
+    SimulationError
+        The drive did not reach the state or the table CRC a step expects.
+    """
+    drive.boot()
+    controller.settle()
+    if node.nmt.state != "PRE-OPERATIONAL":
+        raise SimulationError(f"drive NMT state {node.nmt.state} after boot-up, "
+                              "expected PRE-OPERATIONAL")
+    _configure(scene, node)
+    facts = {}
+    if scene.cam_mode == "drive":
+        facts["download"] = _download_table(scene, controller, node, cam.table)
+    node.tpdo.read()
+    node.rpdo.read()
+    node.nmt.state = "OPERATIONAL"
+    controller.settle()
+    _enable(controller, node)
+    facts["setup_frames"] = controller.frames
+    return facts
+
+
+def _configure(scene: Scene, node) -> None:
+    """Interpolation period, following-error window and mode, by SDO."""
+    sdo = node.sdo
+    value, index = interpolation_period(scene.drive.cycle_s)
+    sdo[0x60C2][1].raw = value
+    sdo[0x60C2][2].raw = index
+    sdo[0x6065].raw = scene.drive.following_error_window
+    sdo[0x6060].raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
+
+
+def _download_table(scene: Scene, controller: LockstepMaster, node, table) -> dict:
+    """Download the table, activate it and select it; return what the download cost."""
+    sdo = node.sdo
+    blob = table.to_bytes()
+    before = controller.frames
+    sdo.download(0x2000, 0, blob)
+    frames = controller.frames - before
+    if sdo[0x2005].raw != table.crc32:
+        raise SimulationError(f"drive pending table CRC 0x{sdo[0x2005].raw:08x}, "
+                              f"expected 0x{table.crc32:08x}")
+    sdo[0x2001][1].raw = CAM_COMMAND_ACTIVATE
+    if sdo[0x2002].raw != table.crc32:
+        raise SimulationError(f"drive active table CRC 0x{sdo[0x2002].raw:08x}, "
+                              f"expected 0x{table.crc32:08x}")
+    sdo[0x2004].raw = 1
+    return {"bytes": len(blob), "frames": frames,
+            "seconds_at_bitrate": frames * frame_bits(8) / scene.bus.bitrate}
+
+
+def _enable(controller: LockstepMaster, node) -> None:
+    """CiA 402 enable by the controlword in RPDO 1; check the drive reached OPERATION ENABLED."""
+    rpdo1 = node.rpdo[1]
+    codec, indexes = pdo_codec(rpdo1)
+    for controlword in (0x06, 0x07, 0x0F):  # shutdown, switch on, enable operation
+        fields = {0x6040: controlword, 0x6060: cia402.CYCLIC_SYNCHRONOUS_POSITION}
+        controller.send_message(rpdo1.cob_id, codec.pack(*[fields[i] for i in indexes]))
+    statusword = node.sdo[0x6041].raw
+    if statusword & 0x6F != 0x27:
+        raise SimulationError(f"drive statusword 0x{statusword:04x} after enabling, expected "
+                              "OPERATION ENABLED (0x27 under mask 0x6F)")

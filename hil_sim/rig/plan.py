@@ -1,0 +1,165 @@
+"""Everything about a run that does not depend on the slave: the cycle count, the master's
+motion sampled for every cycle, and the set points looked up in the table for all of them.
+
+Controller-side, the set points are looked up in the table for all cycles at once
+(``table.lookup`` for the target at the end of the cycle, ``table.slope`` times the master speed
+at mid-cycle for the velocity offset). Drive-side, the master position is what goes on the bus.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ecam.errors import InputError
+from ecam.mechanics import Mechanics
+from hil_sim.master import ConstantSpeed, StartStop, cam_in
+from hil_sim.rig.cam import CompiledCam
+from hil_sim.scene import Scene
+
+MAX_CYCLES = 100_000_000
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything about the run that does not depend on the slave, per cycle k (0..cycles-1)."""
+
+    cycles: int
+    cycle_s: float
+    master_end: np.ndarray       # master counts sent for the end of cycle k (jittered sample)
+    targets: np.ndarray          # controller-side target counts (int64)
+    velocities: np.ndarray       # controller-side velocity offset [counts/s]
+    reference_units: np.ndarray  # ideal slave position at the end of cycle k [slave units]
+    master_units: np.ndarray     # true master position at the end of cycle k [master units]
+    initial_counts: int
+    speed_units: float           # cruise master speed [master units/s]
+    sync_offsets: np.ndarray     # SYNC jitter of cycle k [s]
+
+
+@dataclass(frozen=True)
+class PreparedRun:
+    """A scene made ready to run: what is known before the drive boots.
+
+    Attributes
+    ----------
+    scene : Scene
+    cam : CompiledCam
+    mechanics : ecam.mechanics.Mechanics
+    plan : Plan
+    excitation_hz : float
+        The cam's highest significant acceleration harmonic at the master speed [Hz], which the
+        drive's plant choice is based on.
+    """
+
+    scene: Scene
+    cam: CompiledCam
+    mechanics: Mechanics
+    plan: Plan
+    excitation_hz: float
+
+    @property
+    def cam_hz(self) -> float:
+        """Cam cycles per second at the cruise master speed [Hz]."""
+        return abs(self.plan.speed_units) / self.cam.profile.master_period
+
+    def master_in_period(self, cycle: int) -> float:
+        """The master position at the end of ``cycle`` within the cam period [master units]."""
+        return self.plan.master_units[cycle] % self.cam.profile.master_period
+
+
+def count_cycles(scene: Scene, period_units: float, speed_units: float) -> int:
+    """Bus cycles of the scene's duration, given as cycles, seconds or cam periods."""
+    d, cycle_s = scene.duration, scene.drive.cycle_s
+    if d.cycles is not None:
+        return d.cycles
+    if d.seconds is not None:
+        seconds = d.seconds
+    else:
+        seconds = d.master_periods * period_units / abs(speed_units)
+    cycles = math.ceil(seconds / cycle_s - 1e-9)
+    if cycles > MAX_CYCLES:
+        raise InputError(f"duration {seconds:.6g} s at cycle_s {cycle_s} gives {cycles:.3g} "
+                         f"cycles, should be <= {MAX_CYCLES}")
+    return max(cycles, 1)
+
+
+def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) -> Plan:
+    """Sample the master (and a cam-in) for every cycle and look the set points up.
+
+    Parameters
+    ----------
+    scene : Scene
+    cam : CompiledCam
+    jitter : numpy.ndarray, shape (cycles,)
+        SYNC offset of each cycle [s].
+    cycles : int
+
+    Raises
+    ------
+    InputError
+        A master so fast that a bus cycle covers more than half the cam period.
+    """
+    profile, table, scale = cam.profile, cam.table, cam.scale
+    cycle_s = scene.drive.cycle_s
+    period = profile.master_period
+    per_unit = table.master_counts / period  # master counts per master unit
+    spec = scene.master
+    speed_units = spec.units_per_second(period)
+    speed = speed_units * per_unit
+    if abs(speed_units) * cycle_s > period / 2:
+        # a cam sampled less than twice per period aliases: the set points would be meaningless
+        raise InputError(f"master speed {speed_units:.6g} {profile.master_unit}/s moves "
+                         f"{abs(speed_units) * cycle_s:.6g} {profile.master_unit} per bus cycle, "
+                         f"more than half the cam period ({period / 2:g}); should be <= "
+                         f"{period / 2 / cycle_s:.6g}")
+    k = np.arange(cycles, dtype=float)
+    t_end = (k + 1.0) * cycle_s            # the target sent in cycle k is for its end
+    t_set = t_end + jitter                 # sampled at the jittered SYNC instant
+    t_mid = t_set - 0.5 * cycle_s
+    master, slave_plan = _master_motion(scene, cam, speed, per_unit)
+    master_end = np.rint(master.position(t_set)).astype(np.int64)
+    master_mid = np.rint(master.position(t_mid)).astype(np.int64)
+    targets = table.lookup(master_end)
+    velocities = table.slope(master_mid) / 65536.0 * master.velocity(t_mid)
+    master_true = master.position(t_end)
+    reference = profile(master_true / per_unit)
+    if slave_plan is None:
+        initial = int(table.lookup(int(round(float(master.position(0.0))))))
+    else:
+        # Before the engagement the set points and the reference follow the ruckig approach
+        # (evaluated only there: the plan is a Python call per sample), after it the cam.
+        engage_s = slave_plan.engage_s
+        approach = t_set < engage_s
+        targets = targets.copy()
+        velocities = velocities.copy()
+        targets[approach] = np.rint(slave_plan.position(t_set[approach])).astype(np.int64)
+        velocities[approach] = slave_plan.velocity(t_mid[approach])
+        approach = t_end < engage_s
+        reference[approach] = slave_plan.position(t_end[approach]) / scale
+        initial = int(round(spec.slave_start * scale))
+    return Plan(cycles=cycles, cycle_s=cycle_s, master_end=master_end,
+                targets=np.asarray(targets, dtype=np.int64), velocities=np.asarray(velocities),
+                reference_units=np.asarray(reference, dtype=float),
+                master_units=np.asarray(master_true, dtype=float) / per_unit,
+                initial_counts=initial, speed_units=speed_units, sync_offsets=jitter)
+
+
+def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float):
+    """The master's motion in counts (and, for a cam-in, the slave's approach plan, else None)."""
+    spec = scene.master
+    if spec.profile == "start_stop":
+        return StartStop(speed, spec.max_acceleration * per_unit, spec.max_jerk * per_unit,
+                         start_s=spec.start_s, stop_s=spec.stop_s), None
+    if spec.profile == "cam_in":
+        profile, scale = cam.profile, cam.scale
+
+        def slave_counts(m, order):
+            return profile(m / per_unit, order) * scale / per_unit**order
+
+        slave_plan = cam_in(slave_counts, spec.slave_start * scale, 0.0, speed,
+                            spec.engage_at * per_unit, spec.max_velocity * scale,
+                            spec.slave_max_acceleration * scale, spec.slave_max_jerk * scale)
+        return slave_plan.master, slave_plan
+    return ConstantSpeed(speed), None

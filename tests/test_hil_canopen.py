@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 import ecam
 from hil_sim import drive as drv
-from hil_sim import cia402
+from hil_sim.drive import cia402
 from hil_sim.bus import open_virtual_bus
 from hil_sim.drive import EDS_PATH, VirtualDrive
 from hil_sim.rig import LockstepMaster

@@ -15,7 +15,7 @@ protocol service:
   does not);
 * :mod:`~hil_sim.drive.emcy`: the EMCY producer and its error codes;
 * :mod:`~hil_sim.drive.power_state`: the **CiA 402 power state machine** run from the tables of
-  :mod:`hil_sim.cia402` (:data:`COMMANDS`, :data:`TRANSITIONS`, :data:`STATUSWORD`), modes of
+  :mod:`hil_sim.drive.cia402` (:data:`COMMANDS`, :data:`TRANSITIONS`, :data:`STATUSWORD`), modes of
   operation 0x6060/0x6061 with cyclic synchronous position (8), following-error monitoring
   (window 0x6065, time out 0x6066) raising a fault with EMCY 0x8611;
 * :mod:`~hil_sim.drive.cam_slot`: the **drive-side cam**: a table blob downloaded into 0x2000 is

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import struct
 
-from hil_sim.cia402 import OPERATIONAL, PRE_OPERATIONAL
+from hil_sim.drive.cia402 import OPERATIONAL, PRE_OPERATIONAL
 from hil_sim.drive.objects import CAN_ID_MASK, COB_ID_EMCY
 
 #: EMCY error codes (CiA 301 / 402) and error register bits (0x1001).

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from hil_sim.cia402 import INITIALISING, NMT_COMMANDS, PRE_OPERATIONAL
+from hil_sim.drive.cia402 import INITIALISING, NMT_COMMANDS, PRE_OPERATIONAL
 from hil_sim.drive.objects import HEARTBEAT_COB_ID
 
 #: Node id 0 in an NMT command addresses every node (CiA 301).

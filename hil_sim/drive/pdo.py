@@ -12,7 +12,7 @@ import struct
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
-from hil_sim.cia402 import OPERATIONAL
+from hil_sim.drive.cia402 import OPERATIONAL
 from hil_sim.drive.emcy import EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION
 from hil_sim.drive.objects import (
     CAN_ID_MASK, COB_ID_SYNC, COB_ID_USED_BY_PDO, MAPPING_PARAMETERS, NUMBER_OF_MAPPED_OBJECTS,

@@ -3,14 +3,14 @@ operation (0x6060/0x6061) and following-error monitoring (window 0x6065, time ou
 raising a fault with EMCY 0x8611.
 
 The tables it runs on (states, commands, transitions, statusword bits) are data in
-:mod:`hil_sim.cia402`.
+:mod:`hil_sim.drive.cia402`.
 """
 
 from __future__ import annotations
 
 from canopen.sdo import SdoAbortedError
 
-from hil_sim.cia402 import (
+from hil_sim.drive.cia402 import (
     COMMANDS, CW_FAULT_RESET, CYCLIC_SYNCHRONOUS_POSITION, FAULT, FAULT_REACTION_ACTIVE,
     NOT_READY_TO_SWITCH_ON, OPERATION_ENABLED, QUICK_STOP_ACTIVE, SUPPORTED_MODES,
     SW_FOLLOWING_COMMAND, SW_FOLLOWING_ERROR, SW_REMOTE, SWITCH_ON_DISABLED, TRANSITIONS,

@@ -10,7 +10,7 @@ from canopen.sdo import SdoAbortedError
 
 from ecam.errors import InputError
 from hil_sim.bus import SimNetwork, open_virtual_bus
-from hil_sim.cia402 import (
+from hil_sim.drive.cia402 import (
     CYCLIC_SYNCHRONOUS_POSITION, ENERGIZED, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
     OPERATIONAL, PRE_OPERATIONAL, QUICK_STOP_ACTIVE, SWITCH_ON_DISABLED,
 )

@@ -51,3 +51,15 @@ def test_the_demo_page_shows_both_scenes_and_fetches_nothing(demo):
     assert "stiff_coupling" in page and "soft_coupling" in page
     assert "1 of 2" in page
     assert not re.search(r"""(src|href)=["']https?://""", page)
+
+
+def test_the_report_carries_the_motor_torque_the_page_plots():
+    import numpy as np
+
+    from hil_sim import SCENES_DIR, load_scene, run_scene
+
+    report = run_scene(load_scene(SCENES_DIR / "stiff_coupling.toml"))
+    torque = report.series["peak_motor_torque"]
+    assert len(torque) == len(report.series["time_s"]) == report.cycles
+    assert float(np.max(torque)) == report.summary["mechanics"]["peak_motor_torque"]
+    assert float(np.max(torque)) <= report.summary["mechanics"]["motor_torque_limit"]

@@ -269,8 +269,8 @@ def _envelope(x: np.ndarray, *ys: np.ndarray, limit: int = MAX_PLOT_POINTS):
 
 
 def plot_png(report, dpi: int = 100) -> bytes:
-    """The report's three plots as one PNG: load tracking error and coupling torque over time,
-    following error over the master position in the cam period; limits dashed in red."""
+    """The report's plots as one PNG: load tracking error, coupling torque and motor torque over
+    time, following error over the master position in the cam period; limits dashed in red."""
     from matplotlib.figure import Figure
 
     s = report.series
@@ -278,8 +278,10 @@ def plot_png(report, dpi: int = 100) -> bytes:
     mechanics = report.summary.get("mechanics", {})
     limits = {c.name: c.limit for c in report.checks}
     time_s = np.asarray(s["time_s"], dtype=float)
-    fig = Figure(figsize=(10, 8.4), constrained_layout=True)
-    axes = fig.subplots(3, 1)
+    motor = s.get("peak_motor_torque")
+    panels = 4 if motor is not None else 3
+    fig = Figure(figsize=(10, 2.8 * panels), constrained_layout=True)
+    axes = list(fig.subplots(panels, 1))
 
     def limit_lines(ax, limit, data):
         finite = np.abs(data[np.isfinite(data)])
@@ -317,7 +319,17 @@ def plot_png(report, dpi: int = 100) -> bytes:
     ax.set_title("Coupling torque against its ratings", loc="left", fontsize=11)
     ax.legend(loc="upper right", fontsize="small")
 
-    ax = axes[2]
+    if motor is not None:
+        ax = axes[2]
+        t, y = _envelope(time_s, np.asarray(motor, dtype=float))
+        ax.plot(t, y, lw=0.9, color="tab:orange", label="motor torque (peak per cycle)")
+        limit_lines(ax, mechanics.get("motor_torque_limit"), y)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("torque [N m]")
+        ax.set_title("Motor torque against the drive's torque limit", loc="left", fontsize=11)
+        ax.legend(loc="upper right", fontsize="small")
+
+    ax = axes[-1]
     master = np.asarray(s["master_position"], dtype=float)
     following = np.asarray(s["following_error"], dtype=float)
     # The envelope keeps the extremes of its first series: the following error.

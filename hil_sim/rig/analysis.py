@@ -40,6 +40,7 @@ def analyse(run: PreparedRun, record: Record) -> Report:
               "master_position": plan.master_units[:record.cycles] % period,
               "tracking_error": tracking, "coupling_torque": record.coupling_torque,
               "peak_coupling_torque": record.peak_coupling_torque,
+              "peak_motor_torque": record.peak_motor_torque,
               "following_error": record.following_error}
     return Report(scene=run.scene.name, model=record.model, model_reason=record.model_reason,
                   cycles=record.cycles, checks=checks, summary=summary(run, record),

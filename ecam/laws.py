@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import validate
+from .linear import solve_exact
 
 __all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "law", "polynomial_from_boundary"]
 
@@ -403,7 +404,7 @@ def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
             ]
             rows.append(row)
             rhs.append(value)
-    coeffs = np.linalg.solve(np.array(rows), np.array(rhs))
+    coeffs = solve_exact(rows, rhs)  # the same bits on every machine (ecam.linear)
     rest_start = all(v == 0.0 for v in start)
     rest_end = all(v == 0.0 for v in end)
     return Law(

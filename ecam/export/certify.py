@@ -40,6 +40,7 @@ from decimal import Decimal
 import numpy as np
 
 from ..errors import InputError, TableFormatError
+from ..linear import inverse_exact, matmul
 from ..profile import CamProfile
 from ..table import MAX_MASTER_COUNTS
 from ..table_spec import (
@@ -216,7 +217,7 @@ def _hermite_inverse(degree: int) -> np.ndarray:
         system[k, k] = math.factorial(k)
         for j in range(k, degree + 1):
             system[r + k, j] = math.factorial(j) / math.factorial(j - k)
-    return np.linalg.inv(system)
+    return inverse_exact(system.tolist())
 
 
 @functools.cache
@@ -224,7 +225,7 @@ def _basis_on(degree: int, grid_size: int) -> np.ndarray:
     """|B_{end,k}(t)| on a grid of t: shape (2 * r, grid_size), ends then orders."""
     t = np.linspace(0.0, 1.0, grid_size)
     powers = t[None, :] ** np.arange(degree + 1)[:, None]
-    return np.abs(_hermite_inverse(degree).T @ powers)
+    return np.abs(matmul(_hermite_inverse(degree).T, powers))
 
 
 @dataclass(frozen=True)
@@ -255,7 +256,7 @@ class Hermite:
         r = (self.degree + 1) // 2
         scale = h ** np.arange(r)[None, :]
         data = np.concatenate([self.left * scale, self.right * scale], axis=1)
-        return data @ _hermite_inverse(self.degree).T
+        return matmul(data, _hermite_inverse(self.degree).T)
 
     def at(self, interval: np.ndarray, t: np.ndarray) -> np.ndarray:
         """p_interval(t), vectorized."""
@@ -288,7 +289,7 @@ def _psi_cost(degree: int, order: int, at: float) -> float:
         if k <= order:
             data[r + k] = (1.0 - at) ** (order - k) / math.factorial(order - k)
     powers = t[None, :] ** np.arange(degree + 1)[:, None]
-    interpolant = (_hermite_inverse(degree) @ data) @ powers
+    interpolant = matmul(matmul(_hermite_inverse(degree), data), powers)
     return float(np.abs(psi - interpolant).max()) * _SAMPLE_MARGIN + 1e-12
 
 
@@ -314,7 +315,7 @@ def interval_bounds(cam: Cam, hermite: Hermite, *, extra: float = 0.0, inside=No
                   np.stack([cam(b, k, "left") for k in range(r)], axis=1))
     scale = h[:, None] ** np.arange(r)
     delta = np.concatenate([(hermite.left - inside[0]) * scale, (hermite.right - inside[1]) * scale], axis=1)
-    data = (np.abs(delta) @ _basis_on(n, _T.size)).max(axis=1) * _SAMPLE_MARGIN
+    data = matmul(np.abs(delta), _basis_on(n, _T.size)).max(axis=1) * _SAMPLE_MARGIN
     # the cam and the consumer both evaluate in float64: a few ulp of the largest position
     roundoff = 64 * 2.0**-52 * (cam.peak + 1.0)
     return smooth + jumps + data + roundoff + extra

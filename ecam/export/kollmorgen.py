@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..linear import solve_sparse
 from .certify import (
     Cam, Hermite, Reading, VendorExport, certify, fewest, positional, predicted, spread_knots, unreachable,
 )
@@ -57,36 +58,31 @@ def spline_slopes(x: np.ndarray, y: np.ndarray, condition: str) -> np.ndarray:
     'natural' (zero curvature at both ends) or 'not-a-knot' (third derivative continuous at the
     second and second-to-last knots)."""
     n = x.size - 1
-    h = np.diff(x)
-    d = np.diff(y) / h
-    system = np.zeros((n + 1, n + 1))
-    rhs = np.zeros(n + 1)
+    h = np.diff(x).tolist()
+    d = (np.diff(y) / np.diff(x)).tolist()
+    rows: list[dict] = [{} for _ in range(n + 1)]
+    rhs = [0.0] * (n + 1)
     for i in range(1, n):  # curvature continuous at inner knots
-        system[i, i - 1] = 1 / h[i - 1]
-        system[i, i] = 2 * (1 / h[i - 1] + 1 / h[i])
-        system[i, i + 1] = 1 / h[i]
+        rows[i] = {i - 1: 1 / h[i - 1], i: 2 * (1 / h[i - 1] + 1 / h[i]), i + 1: 1 / h[i]}
         rhs[i] = 3 * (d[i - 1] / h[i - 1] + d[i] / h[i])
     if condition == "natural":
-        system[0, :2] = [2, 1]
-        rhs[0] = 3 * d[0]
-        system[n, n - 1:] = [1, 2]
-        rhs[n] = 3 * d[n - 1]
+        rows[0], rhs[0] = {0: 2.0, 1: 1.0}, 3 * d[0]
+        rows[n], rhs[n] = {n - 1: 1.0, n: 2.0}, 3 * d[n - 1]
     elif condition == "not-a-knot":
         # (m0 + m1 - 2 d0) / h0^2 = (m1 + m2 - 2 d1) / h1^2, and the same at the other end
-        system[0, :3] = [1 / h[0] ** 2, 1 / h[0] ** 2 - 1 / h[1] ** 2, -1 / h[1] ** 2]
+        rows[0] = {0: 1 / h[0] ** 2, 1: 1 / h[0] ** 2 - 1 / h[1] ** 2, 2: -1 / h[1] ** 2}
         rhs[0] = 2 * d[0] / h[0] ** 2 - 2 * d[1] / h[1] ** 2
-        system[n, n - 2:] = [1 / h[n - 2] ** 2, 1 / h[n - 2] ** 2 - 1 / h[n - 1] ** 2, -1 / h[n - 1] ** 2]
+        rows[n] = {n - 2: 1 / h[n - 2] ** 2, n - 1: 1 / h[n - 2] ** 2 - 1 / h[n - 1] ** 2, n: -1 / h[n - 1] ** 2}
         rhs[n] = 2 * d[n - 2] / h[n - 2] ** 2 - 2 * d[n - 1] / h[n - 1] ** 2
     elif condition == "periodic":
         # m0 = mn; the curvature leaving knot 0, (6 d0 - 4 m0 - 2 m1) / h0, equals the curvature
         # arriving at knot n, (-6 d_{n-1} + 2 m_{n-1} + 4 mn) / h_{n-1}
-        system[0, 0], system[0, n] = 1.0, -1.0
-        system[n, 0], system[n, 1] = 4 / h[0], 2 / h[0]
-        system[n, n - 1], system[n, n] = 2 / h[n - 1], 4 / h[n - 1]
+        rows[0] = {0: 1.0, n: -1.0}
+        rows[n] = {0: 4 / h[0], 1: 2 / h[0], n - 1: 2 / h[n - 1], n: 4 / h[n - 1]}
         rhs[n] = 6 * d[0] / h[0] + 6 * d[n - 1] / h[n - 1]
     else:
         raise ValueError(condition)
-    return np.linalg.solve(system, rhs)
+    return solve_sparse(rows, rhs)  # the same bits on every machine (ecam.linear)
 
 
 def _conditions(cam: Cam) -> tuple[str, ...]:

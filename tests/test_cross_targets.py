@@ -1,0 +1,228 @@
+"""The C runtime on the targets drives use: Cortex-M4 (QEMU mps2-an386, semihosting), PPC32
+big-endian (qemu-ppc), i386 and armhf, bit for bit against the golden vectors and a random
+differential set; the instruction budgets of issue 11 on x86-64 (callgrind) and Cortex-M4 (QEMU
+trace); the Cortex-M4 flash, RAM and stack at -Os and -O2 (printed).
+
+Without a target's tools each test skips and names the missing tool and its Debian package
+(`.ci/run` installs them). Everything is seeded.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ecam import CamTable
+from ecam.app.bench import cross, instructions
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import c_blobs as cb  # noqa: E402
+
+# Run by .ci/run as its own suite (`pytest -m cross`); the README's test command leaves them out.
+pytestmark = [pytest.mark.slow, pytest.mark.cross]
+
+ROOT = Path(__file__).resolve().parents[1]
+FIRMWARE = ROOT / "firmware_tables"
+GOLDEN = sorted(p for p in (FIRMWARE / "vectors").glob("*.csv") if p.with_suffix(".bin").exists())
+RANDOM_QUERIES = 3000
+# (master_counts, intervals): power-of-two and other steps, a single-count step, the largest periods
+GEOMETRIES = [(2**20, 64), (360_000, 60), (2, 2), (3, 1), (2**31, 2), (2_147_483_646, 42), (3 * 2**29, 2)]
+STACK_LIMIT = {"position": 64, "slope": 64, "lookup": 96}  # bytes per call on Cortex-M4 (FORMAT.md)
+
+
+def require(name: str) -> cross.Target:
+    target = cross.TARGETS[name]
+    why = cross.missing(target)
+    if why:
+        pytest.skip(why)
+    return target
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("cross")
+
+
+def differential_set() -> list:
+    """(name, blob, queries, expected (n, 2)) for the golden vectors, net-stroke tables (format
+    version 2) and seeded random tables. The expected values come from the golden files, the
+    independent oracle (tests/c_blobs.py) and the Python lookup, checked against each other and
+    the C runtime on this host in tests/test_c_runtime.py."""
+    import test_c_runtime as host
+
+    out = []
+    for csv in GOLDEN:  # a net stroke takes positions past int32: the C runtime returns the wrap
+        rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+        expected = np.stack([cb.int32_wrap(rows[:, 1]), rows[:, 2]], 1)
+        out.append((csv.stem, csv.with_suffix(".bin").read_bytes(), rows[:, 0], expected))
+    out += host.net_stroke_cases()
+    rng = np.random.default_rng(11_2026)
+    special = [dict(work_bits=40, position_bits=9),  # 2^(W-Qy) = 2^31: 64-bit position products
+               dict(work_bits=0, position_bits=0)]  # W = 0: the final shift is 0
+    for degree in (1, 3, 5):
+        for periodic in (True, False):
+            for k, (M, N) in enumerate(GEOMETRIES):
+                fields = special[k % 2] if degree > 1 and k < 2 else {}
+                table = cb.random_table(rng, degree, periodic, M, N, **fields)
+                blob = cb.make_blob(table)
+                queries = cb.random_queries(rng, table, RANDOM_QUERIES)
+                cam = CamTable.from_bytes(blob)
+                positions, slopes = cam.lookup(queries, with_slope=True)
+                out.append((f"deg{degree}-{'p' if periodic else 'c'}-{M}-{N}", blob, queries,
+                            np.stack([positions, slopes], 1)))  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("name", list(cross.TARGETS))
+def test_runtime_bit_for_bit_on_target(work, name):
+    """Golden vectors and the random differential set, every output of every query, through
+    ecam_table_lookup (checked inside the driver against ecam_table_position, ecam_table_slope,
+    the one-output lookups and a copy of the blob at an odd address)."""
+    target = require(name)
+    directory = work / name
+    directory.mkdir()
+    exe = cross.build(target, directory / "ecam_target", ["-O2", "-Wall", "-Wextra"])
+    checked = 0
+    for k, (case, blob, queries, expected) in enumerate(differential_set()):
+        (directory / f"t{k}.bin").write_bytes(blob)
+        queries.astype("<i8").tofile(directory / f"q{k}.i64")
+        proc = cross.run(target, exe, ["lookup", f"t{k}.bin", f"q{k}.i64", f"o{k}.bin"], directory)
+        assert proc.returncode == 0, f"{name} {case}: exit {proc.returncode}: {proc.stdout} {proc.stderr}"
+        got = np.fromfile(directory / f"o{k}.bin", dtype="<i4").astype(np.int64).reshape(-1, 2)
+        bad = np.flatnonzero((got != expected).any(axis=1))
+        assert not bad.size, (f"{name} {case}: {bad.size} of {queries.size} differ, first m={queries[bad[0]]} "
+                              f"got {tuple(got[bad[0]])} expected {tuple(expected[bad[0]])}")  # fmt: skip
+        checked += queries.size
+    assert checked > 100_000
+
+
+@pytest.mark.parametrize("name", list(cross.TARGETS))
+def test_loader_statuses_on_target(work, name):
+    """The loader's codes do not depend on the byte order or word size: every rule's blob of
+    tests/test_c_runtime.py gets the same status on the target as the spec says."""
+    target = require(name)
+    import test_c_runtime as host
+
+    directory = work / f"{name}-status"
+    directory.mkdir()
+    exe = cross.build(target, directory / "ecam_target", ["-O2"])
+    cases = host.field_rule_set()
+    for k, (_, blob, _) in enumerate(cases):
+        (directory / f"b{k}.bin").write_bytes(blob)
+    got = []
+    for start in range(0, len(cases), 16):  # newlib's semihosting command line holds ~255 characters
+        names = [f"b{k}.bin" for k in range(start, min(start + 16, len(cases)))]
+        proc = cross.run(target, exe, ["status", *names], directory)
+        assert proc.returncode == 0, proc.stderr
+        got += [int(v) for v in proc.stdout.split()]
+    wrong = [(case, code, expected) for (case, _, expected), code in zip(cases, got) if code != expected]
+    assert not wrong and len(got) == len(cases), wrong[:10]
+
+
+def test_table_switch_under_systick_on_cortex_m4(work):
+    """ecam_table_pair on the Cortex-M4 with a real interrupt: SysTick fires every 3000 core
+    clocks and looks up 32 masters in the acquired table while the main loop publishes two tables
+    alternately and offers a corrupt blob between loads (firmware_tables/targets/pair_check.c).
+    Every interrupt sees one table entirely, never a mix, never garbage."""
+    target = require("cortex-m4")
+    directory = work / "pair"
+    directory.mkdir()
+    exe = cross.build(target, directory / "pair_check.elf", ["-O2", "-Wall", "-Wextra", "-Werror"],
+                      sources=("targets/pair_check.c", "ecam_table.c"))  # fmt: skip
+    (directory / "a.bin").write_bytes((FIRMWARE / "vectors" / "combination_drrd_quintic.bin").read_bytes())
+    (directory / "b.bin").write_bytes((FIRMWARE / "vectors" / "modified_sine_quintic.bin").read_bytes())
+    proc = cross.run(target, exe, ["a.bin", "b.bin", "300"], directory, timeout=120)
+    words = proc.stdout.split()
+    stats = dict(zip(words[::2], map(int, words[1::2])))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert stats["mixed"] == 0 and stats["garbage"] == 0 and stats["invalid"] == 0, stats
+    assert stats["loads"] == 300 and stats["ticks"] > 300 and stats["seen_a"] > 0 and stats["seen_b"] > 0, stats
+
+
+# --------------------------------------------------------------------------------------------
+# Instruction budgets (issue 11): exact counts, deterministic for one compiler
+# --------------------------------------------------------------------------------------------
+
+BUDGET_TABLES = {1: "combination_drrd_linear", 3: "combination_drrd_cubic", 5: "combination_drrd_quintic"}
+
+
+def _budget_tables():
+    return [CamTable.from_bytes((FIRMWARE / "vectors" / f"{stem}.bin").read_bytes()) for stem in BUDGET_TABLES.values()]
+
+
+def _check_budget(measured: instructions.Measured, what: str):
+    assert measured.checksums_match, f"{what}: the minimal lookup and the runtime disagree"
+    assert measured.ratio_inside <= instructions.LIMITS["inside"], (what, measured)
+    assert measured.ratio_wide <= instructions.LIMITS["wide"], (what, measured)
+
+
+def test_instruction_budget_x86_64(tmp_path):
+    why = instructions.host_note()
+    if why:
+        pytest.skip(why)
+    for table in _budget_tables():
+        work = tmp_path / str(table.format.degree)
+        work.mkdir()
+        _check_budget(instructions.host_counts(work, table.to_bytes(), table.format, 300), f"x86-64 {table.interp}")
+
+
+def _fine_tables():
+    """Tables with many points, where the compiler picks W - Qy = 31 (a position scale past 2^30,
+    which 32-bit cores multiply in 64 bits)."""
+    from ecam.app.bench import MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
+    from ecam.compile import compile_table
+
+    profile = bench_profile(SEED_CAM)
+    low, high = profile.slave_range
+    tables = [compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
+                            slave_counts_per_unit=STROKE_COUNTS / (high - low))
+              for kind, points in (("cubic", 9217), ("quintic", 4609))]  # fmt: skip
+    assert all(t.format.work_bits - t.format.position_bits > 30 for t in tables)
+    return tables
+
+
+def test_instruction_budget_cortex_m4(tmp_path):
+    why = instructions.m4_note()
+    if why:
+        pytest.skip(why)
+    for table in _budget_tables() + _fine_tables():
+        work = tmp_path / f"{table.format.degree}-{table.points}"
+        work.mkdir()
+        _check_budget(instructions.m4_counts(work, table.to_bytes(), table.format, 100),
+                      f"cortex-m4 {table.interp} {table.points} points")
+
+
+def test_cortex_m4_flash_ram_stack(tmp_path, capsys):
+    """Printed at -Os and -O2; the stack per call is measured by painting the stack under QEMU."""
+    why = instructions.m4_note()
+    if why:
+        pytest.skip(why)
+    blobs = {t.format.degree: t.to_bytes() for t in _budget_tables()}
+    report = instructions.m4_footprint(tmp_path, blobs)
+    with capsys.disabled():
+        print()
+        for f in report:
+            print(f"Cortex-M4 {f['opt']}: flash {f['flash_bytes']} B (text {f['text_bytes']}, data {f['data_bytes']}), "
+                  f"RAM {f['ram_bytes']} B static + {f['table_bytes']} B per ecam_table "
+                  f"({f['pair_bytes']} B per ecam_table_pair); largest frame {f['largest_frame']} B")
+            for degree, stack in f["stack_per_call"].items():
+                print(f"  stack per call, {degree}: " + ", ".join(f"{api} {b} B" for api, b in stack.items()))
+    for f in report:
+        assert f["ram_bytes"] == 0  # no mutable globals
+        for degree, stack in f["stack_per_call"].items():
+            for api, limit in STACK_LIMIT.items():
+                assert 0 < stack[api] <= limit, (f["opt"], degree, api, stack[api])
+
+
+def test_tools_are_named_when_missing(monkeypatch, tmp_path):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    for target in cross.TARGETS.values():
+        why = cross.missing(target)
+        assert why.startswith(target.name) and "not found" in why and "apt-get install" in why
+    assert "valgrind" in instructions.host_note() or "compiler" in instructions.host_note()
+    assert shutil.which("qemu-system-arm") is None and "qemu-system-arm" in instructions.m4_note() or "arm-none-eabi-gcc" in instructions.m4_note()

@@ -9,8 +9,9 @@ imports nothing from ``ecam``, so it serves as a second oracle next to ``ecam.Ca
   Python ints never overflow, so every intermediate is checked against the int64 range and every
   output against int32: a table that would overflow in C raises :class:`OverflowError` here
   instead of silently agreeing or disagreeing;
-* :func:`certify` bounds every intermediate of every interval for all tau at once (a sufficient,
-  conservative proof), and :func:`random_table` draws random tables that pass it.
+* :func:`certify` applies FORMAT.md's "Overflow proof" (the rules both loaders apply: a
+  sufficient bound on every intermediate of every interval for all tau at once), and
+  :func:`random_table` draws random tables that pass it.
 """
 
 from __future__ import annotations
@@ -92,6 +93,8 @@ class Table:
     position: tuple
     slope: tuple = ()
     curvature: tuple = ()
+    net_num: int = 0  # net stroke N/D counts per period (format version 2 when N != 0)
+    net_den: int = 1
 
     @property
     def points(self) -> int:
@@ -127,7 +130,7 @@ class Table:
         payload = self.payload()
         return {
             "magic": MAGIC,
-            "format_version": FORMAT_VERSION,
+            "format_version": 2 if self.net_num else FORMAT_VERSION,
             "header_bytes": HEADER_BYTES,
             "degree": self.degree,
             "flags": 1 if self.periodic else 0,
@@ -145,7 +148,7 @@ class Table:
             "tau_recip": self.tau_recip,
             "payload_bytes": len(payload),
             "payload_crc32": zlib.crc32(payload),
-            "reserved_48": bytes(12),
+            "reserved_48": struct.pack("<qI", self.net_num, self.net_den) if self.net_num else bytes(12),
         }
 
 
@@ -227,7 +230,26 @@ def _sum64(terms: list) -> int:
 
 
 def reference_lookup(table: Table, m: int) -> tuple:
-    """(position, slope) of master position m, by the letter of FORMAT.md, in Python ints."""
+    """(position, slope) of master position m, by the letter of FORMAT.md, in Python ints. With a
+    net stroke N/D (version 2) the position adds step 7's floor((k N + floor(D/2)) / D) for the
+    k = floor(m / M) whole periods, modulo 2^64 as an int64 (the C runtime returns its low 32
+    bits: :func:`int32_wrap`)."""
+    position, slope = _lookup_without_net(table, m)
+    if table.net_num:
+        turns = m // table.master_counts
+        position += (turns * table.net_num + table.net_den // 2) // table.net_den
+        position = (position + 2**63) % 2**64 - 2**63
+    return position, slope
+
+
+def int32_wrap(value):
+    """The int32 two's-complement wrap of positions (what the C runtime returns)."""
+    if np.ndim(value) == 0:
+        return (int(value) + 2**31) % 2**32 - 2**31
+    return np.asarray(value, dtype=np.int64).astype(np.int32).astype(np.int64)
+
+
+def _lookup_without_net(table: Table, m: int) -> tuple:
     M, N, h = table.master_counts, table.intervals, table.step_counts
     F, W, P, R = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip
     Qy, n = table.position_bits, table.degree
@@ -266,84 +288,101 @@ def reference_lookup(table: Table, m: int) -> tuple:
 
 
 # --------------------------------------------------------------------------------------------
-# Certification: a conservative bound on every intermediate, per interval, for all tau
+# Certification: FORMAT.md "Overflow proof", the rules both loaders apply, written from the spec
 # --------------------------------------------------------------------------------------------
+
+# Dn and the weights C(j, k) * Dn / C(n, k) of the Bernstein coefficients, from FORMAT.md.
+BERNSTEIN = {
+    1: (1, [[], [1]]),
+    3: (3, [[], [1], [2, 1], [3, 3, 3]]),
+    5: (10, [[], [2], [4, 1], [6, 3, 1], [8, 6, 4, 2], [10, 10, 10, 10, 10]]),
+}
+PROOF_RULES = (
+    "ECAM_E_POINT_RANGE", "ECAM_E_HORNER_RANGE", "ECAM_E_SUM_RANGE", "ECAM_E_POSITION_RANGE",
+    "ECAM_E_SLOPE_HORNER_RANGE", "ECAM_E_SLOPE_PRODUCT", "ECAM_E_SLOPE_RANGE",
+)  # fmt: skip
+
+
+class ProofError(OverflowError):
+    """A table the loaders must reject; ``rule`` is the C status name, ``interval`` where."""
+
+    def __init__(self, rule: str, interval: int):
+        super().__init__(f"{rule} at interval {interval}")
+        self.rule = rule
+        self.interval = interval
+
+
+def exact_coefficients(table: Table, i: int) -> list:
+    """[None, c1, ..., cn] of interval i as unbounded ints (FORMAT.md step 4)."""
+    W = table.work_bits
+    y0 = table.position[i] * 2 ** (W - table.position_bits)
+    D = table.position[i + 1] * 2 ** (W - table.position_bits) - y0
+    if table.degree == 1:
+        return [None, D]
+    a0 = table.slope[i] * 2 ** (W - table.slope_bits)
+    a1 = table.slope[i + 1] * 2 ** (W - table.slope_bits)
+    if table.degree == 3:
+        return [None, a0, 3 * D - 2 * a0 - a1, a0 + a1 - 2 * D]
+    b0 = table.curvature[i] * 2 ** (W - table.curvature_bits)
+    b1 = table.curvature[i + 1] * 2 ** (W - table.curvature_bits)
+    return [None, a0, b0, 10 * D - 6 * a0 - 4 * a1 - 3 * b0 + b1,
+            -15 * D + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1, 6 * D - 3 * a0 - 3 * a1 - b0 + b1]
+
+
+def proof_failure(table: Table):
+    """The first rule of FORMAT.md's overflow proof the table breaks, interval by interval and
+    rule by rule, as (rule, interval); None when the loaders must accept it."""
+    n, F, W, P, R = table.degree, table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip
+    T = 2**F - 1
+    two63 = 2**63
+    scale, weights = BERNSTEIN[n]
+    for i in range(table.intervals):
+        y0 = table.position[i] * 2 ** (W - table.position_bits)
+        y1 = table.position[i + 1] * 2 ** (W - table.position_bits)
+        if abs(y0) >= 2**62 or abs(y1) >= 2**62:
+            return "ECAM_E_POINT_RANGE", i
+        c = exact_coefficients(table, i)
+        r = abs(c[n])
+        horner_ok = r * T < two63
+        for k in range(n - 1, 0, -1):
+            r = abs(c[k]) + r + 1
+            horner_ok = horner_ok and r * T < two63
+        if not horner_ok:
+            return "ECAM_E_HORNER_RANGE", i
+        if abs(y0) + r + 2**W >= two63:
+            return "ECAM_E_SUM_RANGE", i
+        for row in weights:
+            b = scale * y0 + sum(w * c[k] for k, w in enumerate(row, start=1))
+            if abs(b) + scale * n > scale * (2**31 - 1) * 2**W:
+                return "ECAM_E_POSITION_RANGE", i
+        q = n * abs(c[n])
+        slope_ok = True
+        for k in range(n - 1, 0, -1):
+            slope_ok = slope_ok and q * T < two63
+            q = k * abs(c[k]) + q + 1
+        if not (slope_ok and q < two63):
+            return "ECAM_E_SLOPE_HORNER_RANGE", i
+        s = -(-q // 2**P)  # ceil(q / 2^P)
+        if s * R >= two63:
+            return "ECAM_E_SLOPE_PRODUCT", i
+        if s * R > (2**31 - 1) * 2 ** (SLOPE_FRACTION_BITS + F + W - P):
+            return "ECAM_E_SLOPE_RANGE", i
+    return None
 
 
 def certify(table: Table) -> None:
-    """Raise OverflowError unless every lookup of this table stays in int64/int32.
-
-    Sufficient, not tight: with 0 <= tau < 2^F, |asr(x * tau, F)| <= |x|, so the Horner value
-    after coefficient k is at most sum_{j >= k} |c_j| (and sum j * |c_j| for the slope); every
-    linear combination is bounded by the sum of the magnitudes of its terms.
-    """
-    F, W, P, R, n = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip, table.degree
-    Qy = table.position_bits
-    half = 2 ** (W - 1) if W > 0 else 0
-    lim = INT64_MAX  # |x| <= INT64_MAX implies x is an int64
-    tau_max = 2**F - 1
-    out_shift = SLOPE_FRACTION_BITS + F + W - P
-    if not (0 <= out_shift <= 63 and Qy <= W):
+    """Raise :class:`ProofError` (an OverflowError) unless the table passes FORMAT.md's overflow
+    proof, i.e. unless both loaders accept it. The proof is sufficient: every lookup of a
+    certified table keeps its intermediates in int64, which :func:`reference_lookup` checks on
+    every query it evaluates."""
+    F, W, P, R = table.tau_bits, table.work_bits, table.slope_preshift, table.tau_recip
+    if not (0 <= SLOPE_FRACTION_BITS + F + W - P <= 63 and table.position_bits <= W):
         raise OverflowError("shift counts out of range")
-    if (table.step_counts - 1) * R > lim:
+    if (table.step_counts - 1) * R > INT64_MAX:
         raise OverflowError("t * R")
-    for i in range(table.intervals):
-        mags = _coefficient_magnitudes(table, i)  # [None, |c1|, ...], already bounded
-        position_tail = 0
-        slope_tail = 0
-        for k in range(n, 0, -1):
-            # r_k = c_k + asr(r_{k+1} * tau, F);   q_k = k c_k + asr(q_{k+1} * tau, F)
-            if position_tail * tau_max > lim or slope_tail * tau_max > lim:
-                raise OverflowError(f"Horner product, interval {i}")
-            position_tail += mags[k]
-            slope_tail += k * mags[k]
-            if position_tail > lim or slope_tail > lim or k * mags[k] > lim:
-                raise OverflowError(f"Horner sum, interval {i}")
-        # position = asr(Y0 * 2^(W-Qy) + e + half, W) with |e| = |asr(r * tau, F)| <= tail
-        if position_tail * tau_max > lim:
-            raise OverflowError(f"final position product, interval {i}")
-        y0 = table.position[i] * 2 ** (W - Qy)
-        low, high = y0 - position_tail, y0 + position_tail + half
-        if abs(y0) > lim or low < INT64_MIN or high > lim:
-            raise OverflowError(f"final position sum, interval {i}")
-        if not (INT32_MIN <= low >> W and high >> W <= INT32_MAX):
-            raise OverflowError(f"position output, interval {i}")
-        scaled = -(-slope_tail // 2**P)  # >= |asr(q, P)|
-        if scaled * R > lim:
-            raise OverflowError(f"slope reciprocal product, interval {i}")
-        if -(-scaled * R // 2**out_shift) > INT32_MAX:
-            raise OverflowError(f"slope output, interval {i}")
-
-
-def _coefficient_magnitudes(table: Table, i: int) -> list:
-    """Upper bounds of |c_k| for interval i, checking every term and partial sum of step 4."""
-    W = table.work_bits
-    y0, y1 = table.position[i], table.position[i + 1]
-    D = abs(y1 - y0) * 2 ** (W - table.position_bits)
-    if table.degree == 1:
-        _bounded([D])
-        return [None, D]
-    a0 = abs(table.slope[i]) * 2 ** (W - table.slope_bits)
-    a1 = abs(table.slope[i + 1]) * 2 ** (W - table.slope_bits)
-    if table.degree == 3:
-        return [None, _bounded([a0]), _bounded([3 * D, 2 * a0, a1]), _bounded([a0, a1, 2 * D])]
-    b0 = abs(table.curvature[i]) * 2 ** (W - table.curvature_bits)
-    b1 = abs(table.curvature[i + 1]) * 2 ** (W - table.curvature_bits)
-    return [
-        None,
-        _bounded([a0]),
-        _bounded([b0]),
-        _bounded([10 * D, 6 * a0, 4 * a1, 3 * b0, b1]),
-        _bounded([15 * D, 8 * a0, 7 * a1, 3 * b0, 2 * b1]),
-        _bounded([6 * D, 3 * a0, 3 * a1, b0, b1]),
-    ]
-
-
-def _bounded(magnitudes: list) -> int:
-    total = sum(magnitudes)
-    if total > INT64_MAX:
-        raise OverflowError("coefficient term")
-    return total
+    failure = proof_failure(table)
+    if failure is not None:
+        raise ProofError(*failure)
 
 
 # --------------------------------------------------------------------------------------------

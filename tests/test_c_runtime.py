@@ -42,14 +42,24 @@ SANITIZER_ENV = {
     "UBSAN_OPTIONS": "halt_on_error=1:print_stacktrace=1:exitcode=98",
 }
 
-OK, E_SHORT, E_MAGIC, E_VERSION, E_HEADER_SIZE, E_HEADER_CRC = 0, -1, -2, -3, -4, -5
-E_FIELD, E_LENGTH, E_PAYLOAD_CRC, E_NULL = -6, -7, -8, -9
+# Every status of ecam_table.h: one per rejection rule (FORMAT.md), in the loader's order.
 STATUS_NAMES = {
-    OK: "ECAM_OK", E_SHORT: "ECAM_E_SHORT", E_MAGIC: "ECAM_E_MAGIC", E_VERSION: "ECAM_E_VERSION",
-    E_HEADER_SIZE: "ECAM_E_HEADER_SIZE", E_HEADER_CRC: "ECAM_E_HEADER_CRC",
-    E_FIELD: "ECAM_E_FIELD", E_LENGTH: "ECAM_E_LENGTH", E_PAYLOAD_CRC: "ECAM_E_PAYLOAD_CRC",
-    E_NULL: "ECAM_E_NULL",
+    0: "ECAM_OK", -1: "ECAM_E_SHORT", -2: "ECAM_E_MAGIC", -3: "ECAM_E_VERSION",
+    -4: "ECAM_E_HEADER_SIZE", -5: "ECAM_E_HEADER_CRC", -6: "ECAM_E_FIELD", -7: "ECAM_E_LENGTH",
+    -8: "ECAM_E_PAYLOAD_CRC", -9: "ECAM_E_NULL", -10: "ECAM_E_DEGREE", -11: "ECAM_E_FLAGS",
+    -12: "ECAM_E_RESERVED", -13: "ECAM_E_POINTS", -14: "ECAM_E_MASTER_COUNTS",
+    -15: "ECAM_E_STEP_COUNTS", -16: "ECAM_E_STEP_SHIFT", -17: "ECAM_E_TAU_BITS",
+    -18: "ECAM_E_TAU_RECIP", -19: "ECAM_E_POSITION_BITS", -20: "ECAM_E_WORK_BITS",
+    -21: "ECAM_E_SLOPE_BITS", -22: "ECAM_E_CURVATURE_BITS", -23: "ECAM_E_SLOPE_PRESHIFT",
+    -24: "ECAM_E_PAYLOAD_BYTES", -25: "ECAM_E_POINT_RANGE", -26: "ECAM_E_HORNER_RANGE",
+    -27: "ECAM_E_SUM_RANGE", -28: "ECAM_E_POSITION_RANGE", -29: "ECAM_E_SLOPE_HORNER_RANGE",
+    -30: "ECAM_E_SLOPE_PRODUCT", -31: "ECAM_E_SLOPE_RANGE", -32: "ECAM_E_UNINITIALISED",
+    -33: "ECAM_E_BUSY", -34: "ECAM_E_NET_STROKE",
 }  # fmt: skip
+CODES = {name: code for code, name in STATUS_NAMES.items()}
+OK, E_SHORT, E_MAGIC, E_VERSION = 0, -1, -2, -3
+E_HEADER_SIZE, E_HEADER_CRC, E_LENGTH, E_PAYLOAD_CRC, E_NULL = -4, -5, -7, -8, -9
+ECAM_INVALID = -(2**31)  # what a table that is not ready looks up
 
 MAIN_QUERIES = 250_000  # x 4 tables (periodic or not, h = 2^k or not) = 1M per degree
 EDGE_QUERIES = 20_000
@@ -343,12 +353,23 @@ def test_misaligned_blob_and_api(build_dir):
         assert head["crc_blob"] == f"{zlib.crc32(blob):08x}"
         assert head["init_null_table"] == str(E_NULL)
         assert head["init_null_blob"] == str(E_NULL)
-        assert head["failed_table_lookup"] == "0 0 0 0"
-        assert head["null_table_lookup"] == "0 0 0 0"
+        invalid4 = " ".join([str(ECAM_INVALID)] * 4)
+        # A failed init: not ready, remembers why, every lookup is ECAM_INVALID (never a 0 command)
+        assert head["failed_table_lookup"] == invalid4
+        assert head["failed_table_state"] == f"ready=0 status={E_LENGTH}"
+        assert head["null_blob_state"] == f"ready=0 status={E_NULL}"
+        assert head["null_table_lookup"] == invalid4
+        assert head["null_table_state"] == f"ready=0 status={E_NULL}"
+        # A zero-filled table that was never initialised (static storage) behaves the same
+        assert head["uninitialised_lookup"] == invalid4
+        assert head["uninitialised_state"] == f"ready=0 status={CODES['ECAM_E_UNINITIALISED']}"
+        # A good table that is re-initialised with a bad blob is no longer ready
+        assert head["reinit_failed"] == f"{E_HEADER_CRC} ready=0 {ECAM_INVALID}"
         assert head["misaligned_init"] == "0"
+        assert head["ready_state"] == "ready=1 status=0"
         for code, name in STATUS_NAMES.items():
             assert head[f"name{code}"] == name
-        assert head["name1"] == head["name-100"] == "ECAM_E_UNKNOWN"
+        assert head["name1"] == head["name-35"] == head["name-100"] == "ECAM_E_UNKNOWN"
 
 
 API_HARNESS = r"""
@@ -361,8 +382,10 @@ API_HARNESS = r"""
 int main(int argc, char **argv)
 {
     static uint8_t storage[1 << 16];
+    static uint8_t broken[1 << 16];
+    static ecam_table never_initialised; /* zero-filled */
     uint8_t *blob = storage + 1; /* deliberately misaligned */
-    ecam_table t, failed;
+    ecam_table t, failed, reinit;
     size_t len;
     int32_t p, s, p2, s2;
     long long m;
@@ -377,16 +400,32 @@ int main(int argc, char **argv)
     printf("crc_blob=%08" PRIx32 "\n", ecam_crc32(blob, len));
     printf("init_null_table=%d\n", ecam_table_init(NULL, blob, len));
     printf("init_null_blob=%d\n", ecam_table_init(&t, NULL, len));
+    printf("null_blob_state=ready=%d status=%d\n", ecam_table_ready(&t), ecam_table_status(&t));
     ecam_table_init(&failed, blob, len - 1);
     ecam_table_lookup(&failed, 12345, &p, &s);
     printf("failed_table_lookup=%d %d %d %d\n", (int)p, (int)s,
            (int)ecam_table_position(&failed, 7), (int)ecam_table_slope(&failed, 7));
+    printf("failed_table_state=ready=%d status=%d\n", ecam_table_ready(&failed),
+           ecam_table_status(&failed));
     ecam_table_lookup(NULL, 12345, &p, &s);
     printf("null_table_lookup=%d %d %d %d\n", (int)p, (int)s,
            (int)ecam_table_position(NULL, 7), (int)ecam_table_slope(NULL, 7));
-    for (code = -10; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
+    printf("null_table_state=ready=%d status=%d\n", ecam_table_ready(NULL), ecam_table_status(NULL));
+    ecam_table_lookup(&never_initialised, 12345, &p, &s);
+    printf("uninitialised_lookup=%d %d %d %d\n", (int)p, (int)s,
+           (int)ecam_table_position(&never_initialised, 7), (int)ecam_table_slope(&never_initialised, 7));
+    printf("uninitialised_state=ready=%d status=%d\n", ecam_table_ready(&never_initialised),
+           ecam_table_status(&never_initialised));
+    memcpy(broken, blob, len);
+    broken[20] ^= 1u; /* header byte: CRC mismatch */
+    if (ecam_table_init(&reinit, blob, len) != 0) return 8;
+    code = ecam_table_init(&reinit, broken, len);
+    printf("reinit_failed=%d ready=%d %d\n", code, ecam_table_ready(&reinit),
+           (int)ecam_table_position(&reinit, 0));
+    for (code = -35; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
     printf("name-100=%s\n", ecam_status_name(-100));
     printf("misaligned_init=%d\n", ecam_table_init(&t, blob, len));
+    printf("ready_state=ready=%d status=%d\n", ecam_table_ready(&t), ecam_table_status(&t));
     while (scanf("%lld", &m) == 1) {
         ecam_table_lookup(&t, (int64_t)m, &p, &s);
         ecam_table_lookup(&t, (int64_t)m, NULL, NULL);
@@ -464,22 +503,64 @@ def _recip(h: int, F: int) -> int:
     return -(-(1 << (32 + F)) // h)
 
 
+def zero_table(degree: int, master_counts: int = 3000, intervals: int = 2, **fields) -> cb.Table:
+    """A table whose payload is all zero: its overflow proof depends on the header alone, so
+    the format rules can be probed at their edges with known outcomes."""
+    points = intervals + 1
+    h = master_counts // intervals
+    F = cb.ceil_log2(h)
+    values = dict(degree=degree, periodic=True, master_counts=master_counts, tau_bits=F,
+                  work_bits=0, slope_bits=0, curvature_bits=0, slope_preshift=0, position_bits=0,
+                  position=(0,) * points, slope=(0,) * points if degree >= 3 else (),
+                  curvature=(0,) * points if degree == 5 else ())  # fmt: skip
+    values.update(fields)
+    return cb.Table(**values)
+
+
+def parse_blob(blob: bytes) -> cb.Table:
+    """A blob that passes every field rule, back as a c_blobs.Table (header fields as stored)."""
+    names = [name for name, _ in cb.HEADER_FIELDS]
+    v = dict(zip(names, cb.HEADER_STRUCT.unpack(blob[:60])))
+    n, degree = v["points"], v["degree"]
+    arrays = [struct.unpack_from(f"<{n}i", blob, 64 + 4 * n * k) for k in range(3)[: (degree + 1) // 2]]
+    return cb.Table(
+        degree=degree, periodic=bool(v["flags"] & 1), master_counts=v["master_counts"],
+        tau_bits=v["tau_bits"], work_bits=v["work_bits"], slope_bits=v["slope_bits"],
+        curvature_bits=v["curvature_bits"], slope_preshift=v["slope_preshift"],
+        position_bits=v["position_bits"], position=arrays[0],
+        slope=arrays[1] if degree >= 3 else (), curvature=arrays[2] if degree == 5 else (),
+    )  # fmt: skip
+
+
+def proof_status(blob: bytes) -> int:
+    """OK, or the code of the first overflow-proof rule the blob breaks, by tests/c_blobs.py's
+    independent reading of FORMAT.md."""
+    failure = cb.proof_failure(parse_blob(blob))
+    return OK if failure is None else CODES[failure[0]]
+
+
+PROOF = "decided by the overflow proof (c_blobs.proof_failure)"
+
+
 def field_rule_set() -> list:
     """(name, blob, expected) for each rule of FORMAT.md, with a valid header CRC, plus valid
-    blobs at the edges of each rule as positive controls."""
+    blobs at the edges of each rule as positive controls. Each rule has its own code; where a
+    blob passes every field rule its status is the overflow proof's (PROOF)."""
     linear = small_table(1)  # h = 1500, not a power of two
     cubic = small_table(3)
     quintic = small_table(5)
     pow2 = cb.random_table(np.random.default_rng(50), 3, True, 2**12, 4)  # h = 1024
+    zero_cubic, zero_quintic, zero_linear = zero_table(3), zero_table(5), zero_table(1)
     h = cubic.step_counts
     out = []
 
     def add(name, expected, table=cubic, **fields):
-        out.append((name, cb.make_blob(table, **fields), expected))
+        blob = cb.make_blob(table, **fields)
+        out.append((name, blob, proof_status(blob) if expected is PROOF else expected))
 
     # The envelope checks, in FORMAT.md order.
     add("magic", E_MAGIC, magic=b"ECAm")
-    for version in (0, 2, 0x0101):
+    for version in (0, 3, 0x0101, 0x0201):
         add(f"version{version}", E_VERSION, format_version=version)
     for size in (0, 63, 65, 128):
         add(f"header_bytes{size}", E_HEADER_SIZE, header_bytes=size)
@@ -487,103 +568,153 @@ def field_rule_set() -> list:
     out.append(("header_crc", cb.patch(good, 60, struct.pack("<I", 0), False), E_HEADER_CRC))
     # degree and flags
     for degree in (0, 2, 4, 6, 7, 255):
-        add(f"degree{degree}", E_FIELD, degree=degree)
-    add("degree3_as_5", E_FIELD, degree=5)  # payload_bytes no longer points * 12
+        add(f"degree{degree}", CODES["ECAM_E_DEGREE"], degree=degree)
+    add("degree3_as_5", CODES["ECAM_E_PAYLOAD_BYTES"], degree=5)  # payload_bytes is not points * 12
     for flags in (2, 3, 0x80, 0xFE):
-        add(f"flags{flags:#x}", E_FIELD, flags=flags)
+        add(f"flags{flags:#x}", CODES["ECAM_E_FLAGS"], flags=flags)
     add("flags0", OK, flags=0)
     # step_shift and tau_bits
     for shift in (-2, 0, 10, 11, 127, -128):
-        add(f"step_shift{shift}", E_FIELD, step_shift=shift)
+        add(f"step_shift{shift}", CODES["ECAM_E_STEP_SHIFT"], step_shift=shift)
     for shift in (-1, 9, 11):
-        add(f"pow2_step_shift{shift}", E_FIELD, table=pow2, step_shift=shift)
+        add(f"pow2_step_shift{shift}", CODES["ECAM_E_STEP_SHIFT"], table=pow2, step_shift=shift)
     lowest = cb.ceil_log2(h)
-    add("tau_bits_below_log2h", E_FIELD, tau_bits=lowest - 1, tau_recip=_recip(h, lowest - 1))
-    for F in (lowest, 30):
-        for P in (0, 16 + F + cubic.work_bits):
-            if 16 + F + cubic.work_bits - P <= 63 and F + cubic.work_bits <= 63:
-                add(f"tau_bits{F}_P{P}", OK, tau_bits=F, tau_recip=_recip(h, F), slope_preshift=P)
-    add("tau_bits31", E_FIELD, tau_bits=31, tau_recip=_recip(h, 31))
-    add("pow2_tau_bits_k+1", E_FIELD, table=pow2, tau_bits=11, tau_recip=_recip(1024, 11))
-    add("pow2_tau_bits_k-1", E_FIELD, table=pow2, tau_bits=9, tau_recip=_recip(1024, 9))
-    # Qy, W, Qa, Qb; P is set so that 16 + F + W - P = 0 stays valid whatever W is tried
-    F = cubic.tau_bits
+    add("tau_bits_below_log2h", CODES["ECAM_E_TAU_BITS"], tau_bits=lowest - 1,
+        tau_recip=_recip(h, lowest - 1))  # fmt: skip
+    for F in (lowest, 30):  # on a zero payload only the shifts decide the proof
+        for P in (max(0, 16 + F - 63), 16 + F):
+            expected = OK if P < 16 + F else CODES["ECAM_E_SLOPE_RANGE"]  # P = 16+F+W: R > 2^31
+            add(f"tau_bits{F}_P{P}", expected, table=zero_cubic, tau_bits=F, tau_recip=_recip(h, F),
+                slope_preshift=P)  # fmt: skip
+    add("tau_bits31", CODES["ECAM_E_TAU_BITS"], tau_bits=31, tau_recip=_recip(h, 31))
+    add("pow2_tau_bits_k+1", CODES["ECAM_E_TAU_BITS"], table=pow2, tau_bits=11, tau_recip=_recip(1024, 11))
+    add("pow2_tau_bits_k-1", CODES["ECAM_E_TAU_BITS"], table=pow2, tau_bits=9, tau_recip=_recip(1024, 9))
+    # Qy, W, Qa, Qb on zero payloads; P is the smallest that keeps 16 + F + W - P <= 63
+    F = zero_cubic.tau_bits
 
     def bits(qy, w, **more):
-        return dict(position_bits=qy, work_bits=w, slope_bits=0, slope_preshift=16 + F + w, **more)
+        return dict(position_bits=qy, work_bits=w, slope_bits=0, slope_preshift=max(0, 16 + F + w - 63), **more)
 
-    add("work_bits41", E_FIELD, **bits(0, 41))
-    add("work_bits40", OK, **bits(0, 40))
-    add("position_bits31", E_FIELD, **bits(31, 40))
-    add("position_bits30", OK, **bits(30, 40))
-    add("work_bits_below_Qy", E_FIELD, **bits(11, 10))
-    add("work_bits_eq_Qy", OK, **bits(10, 10))
-    add("slope_bits_gt_W", E_FIELD, **dict(bits(5, 20), slope_bits=21))
-    add("slope_bits_eq_W", OK, **dict(bits(5, 20), slope_bits=20))
-    add("cubic_curvature_bits1", E_FIELD, curvature_bits=1)
-    add("curvature_bits_gt_W", E_FIELD, table=quintic, **bits(0, 20, curvature_bits=21))
-    add("quintic_bits_eq_W", OK, table=quintic, **dict(bits(20, 20, curvature_bits=20),
-                                                       slope_bits=20))  # fmt: skip
-    lf = linear.tau_bits
-    for qy, w, expected in ((5, 5, OK), (5, 6, E_FIELD), (6, 5, E_FIELD), (0, 1, E_FIELD)):
-        add(f"linear_Qy{qy}_W{w}", expected, table=linear, position_bits=qy, work_bits=w,
-            slope_preshift=16 + lf + w)  # fmt: skip
-    add("linear_slope_bits1", E_FIELD, table=linear, slope_bits=1)
-    add("linear_curvature_bits1", E_FIELD, table=linear, curvature_bits=1)
-    # P: 16 + F + W - P in 0..63; P itself may exceed 63
+    add("work_bits41", CODES["ECAM_E_WORK_BITS"], table=zero_cubic, **bits(0, 41))
+    add("work_bits40", OK, table=zero_cubic, **bits(0, 40))
+    add("position_bits31", CODES["ECAM_E_POSITION_BITS"], table=zero_cubic, **bits(31, 40))
+    add("position_bits30", OK, table=zero_cubic, **bits(30, 40))
+    add("work_bits_below_Qy", CODES["ECAM_E_WORK_BITS"], table=zero_cubic, **bits(11, 10))
+    add("work_bits_eq_Qy", OK, table=zero_cubic, **bits(10, 10))
+    add("slope_bits_gt_W", CODES["ECAM_E_SLOPE_BITS"], table=zero_cubic, **dict(bits(5, 20), slope_bits=21))
+    add("slope_bits_eq_W", OK, table=zero_cubic, **dict(bits(5, 20), slope_bits=20))
+    add("cubic_curvature_bits1", CODES["ECAM_E_CURVATURE_BITS"], curvature_bits=1)
+    add("curvature_bits_gt_W", CODES["ECAM_E_CURVATURE_BITS"], table=zero_quintic,
+        **bits(0, 20, curvature_bits=21))  # fmt: skip
+    add("quintic_bits_eq_W", OK, table=zero_quintic, **dict(bits(20, 20, curvature_bits=20), slope_bits=20))
+    lf = zero_linear.tau_bits
+    for qy, w, expected in ((5, 5, OK), (5, 6, "ECAM_E_WORK_BITS"), (6, 5, "ECAM_E_WORK_BITS"),
+                            (0, 1, "ECAM_E_WORK_BITS")):  # fmt: skip
+        add(f"linear_Qy{qy}_W{w}", expected if expected == OK else CODES[expected], table=zero_linear,
+            position_bits=qy, work_bits=w, slope_preshift=max(0, 16 + lf + w - 63))  # fmt: skip
+    add("linear_slope_bits1", CODES["ECAM_E_SLOPE_BITS"], table=linear, slope_bits=1)
+    add("linear_curvature_bits1", CODES["ECAM_E_CURVATURE_BITS"], table=linear, curvature_bits=1)
+    # P: 16 + F + W - P in 0..63; P itself may exceed 63 (the proof then decides, with the header's P)
     W = cubic.work_bits
-    add("P_too_large", E_FIELD, slope_preshift=16 + F + W + 1)
-    add("P_max", OK, slope_preshift=16 + F + W)
+    add("P_too_large", CODES["ECAM_E_SLOPE_PRESHIFT"], slope_preshift=16 + cubic.tau_bits + W + 1)
+    add("P_max", PROOF, slope_preshift=16 + cubic.tau_bits + W)
     f30 = dict(tau_bits=30, tau_recip=_recip(h, 30), work_bits=40, slope_bits=0)  # 16+F+W = 86
-    for P, expected in ((22, E_FIELD), (23, OK), (64, OK), (86, OK), (87, E_FIELD)):
-        add(f"F30_W40_P{P}", expected, slope_preshift=P, **f30)
+    for P, expected in ((22, CODES["ECAM_E_SLOPE_PRESHIFT"]), (23, OK), (64, PROOF), (86, PROOF),
+                        (87, CODES["ECAM_E_SLOPE_PRESHIFT"])):  # fmt: skip
+        add(f"F30_W40_P{P}", expected, table=zero_cubic, slope_preshift=P, **f30)
     big = dict(tau_bits=30, tau_recip=_recip(h, 30), work_bits=20, slope_bits=0)  # 16+F+W = 66
-    add("P_too_small", E_FIELD, slope_preshift=2, **dict(big, position_bits=0))
-    add("P_min", OK, slope_preshift=3, **dict(big, position_bits=0))
+    add("P_too_small", CODES["ECAM_E_SLOPE_PRESHIFT"], table=zero_cubic, slope_preshift=2, **big)
+    add("P_min", OK, table=zero_cubic, slope_preshift=3, **big)
     # points, M, h
-    add("points1", E_FIELD, points=1)
-    add("points4", E_FIELD, points=4)
-    add("master_counts_off", E_FIELD, master_counts=3001)
-    add("step_counts_off", E_FIELD, step_counts=1501, tau_recip=_recip(1501, F))
-    add("step_counts0", E_FIELD, step_counts=0)
+    add("points1", CODES["ECAM_E_POINTS"], points=1)
+    add("points4", CODES["ECAM_E_STEP_COUNTS"], points=4)  # 3 * h != M
+    add("master_counts_off", CODES["ECAM_E_STEP_COUNTS"], master_counts=3001)
+    add("master_counts_2^31+1", CODES["ECAM_E_MASTER_COUNTS"], master_counts=2**31 + 1)
+    add("step_counts_off", CODES["ECAM_E_STEP_COUNTS"], step_counts=1501, tau_recip=_recip(1501, F))
+    add("step_counts0", CODES["ECAM_E_STEP_COUNTS"], step_counts=0)
     for name, table, expected in (
-        ("master_counts1", linear_table(1, 0, (0, 0)), E_FIELD),  # N * h == M holds
-        ("master_counts2", linear_table(2, 0, (0, 0, 0)), OK),
-        ("master_counts2^31", linear_table(2**31, 30, (0, 0, 0)), OK),
-        ("master_counts3*2^30", linear_table(3 * 2**30, 30, (0, 0, 0, 0)), E_FIELD),
-        ("step_counts2^31", linear_table(2**31, 31, (0, 0)), E_FIELD),  # h > 2^30
+        ("master_counts1", linear_table(1, 0, (0, 0)), "ECAM_E_MASTER_COUNTS"),  # N * h == M holds
+        ("master_counts2", linear_table(2, 0, (0, 0, 0)), "ECAM_OK"),
+        ("master_counts2^31", linear_table(2**31, 30, (0, 0, 0)), "ECAM_OK"),
+        ("master_counts3*2^30", linear_table(3 * 2**30, 30, (0, 0, 0, 0)), "ECAM_E_MASTER_COUNTS"),
+        ("step_counts2^31", linear_table(2**31, 31, (0, 0)), "ECAM_E_STEP_COUNTS"),  # h > 2^30
     ):
-        out.append((name, cb.make_blob(table), expected))
+        out.append((name, cb.make_blob(table), CODES[expected]))
     # payload_bytes that only matches modulo 2^32: points * 12 for points = 2^30 + 1
     values = dict(quintic.header_values(), points=2**30 + 1, master_counts=2**31,
                   step_counts=2, step_shift=1, tau_bits=1, tau_recip=2**32, slope_preshift=0,
                   payload_bytes=((2**30 + 1) * 12) % 2**32)  # fmt: skip
     payload = bytes(values["payload_bytes"])
     values["payload_crc32"] = zlib.crc32(payload)
-    out.append(("payload_bytes_mod_2^32", cb.pack_blob(values, payload), E_FIELD))
+    out.append(("payload_bytes_mod_2^32", cb.pack_blob(values, payload), CODES["ECAM_E_PAYLOAD_BYTES"]))
     # reserved
     for k in range(3):
-        add(f"reserved29+{k}", E_FIELD, reserved_29=bytes(k) + b"\x80" + bytes(2 - k))
+        add(f"reserved29+{k}", CODES["ECAM_E_RESERVED"], reserved_29=bytes(k) + b"\x80" + bytes(2 - k))
     for k in range(12):
-        add(f"reserved48+{k}", E_FIELD, reserved_48=bytes(k) + b"\x01" + bytes(11 - k))
+        add(f"reserved48+{k}", CODES["ECAM_E_RESERVED"], reserved_48=bytes(k) + b"\x01" + bytes(11 - k))
     # tau_recip
     R = cubic.tau_recip
     for delta in (-1, 1, 2**32):
-        add(f"tau_recip{delta:+d}", E_FIELD, tau_recip=R + delta)
+        add(f"tau_recip{delta:+d}", CODES["ECAM_E_TAU_RECIP"], tau_recip=R + delta)
     for value in (0, 2**64 - 1, 2**63):
-        add(f"tau_recip={value:#x}", E_FIELD, tau_recip=value)
-    add("pow2_tau_recip+1", E_FIELD, table=pow2, tau_recip=2**32 + 1)
-    add("pow2_tau_recip-1", E_FIELD, table=pow2, tau_recip=2**32 - 1)
+        add(f"tau_recip={value:#x}", CODES["ECAM_E_TAU_RECIP"], tau_recip=value)
+    add("pow2_tau_recip+1", CODES["ECAM_E_TAU_RECIP"], table=pow2, tau_recip=2**32 + 1)
+    add("pow2_tau_recip-1", CODES["ECAM_E_TAU_RECIP"], table=pow2, tau_recip=2**32 - 1)
     # payload_bytes vs length vs payload CRC
     n_bytes = len(cubic.payload())
     for delta in (-4, -1, 1, 4):  # total length kept consistent, so only the field rule fails
         blob = cb.make_blob(cubic, payload_bytes=n_bytes + delta)
         blob = blob[: 64 + n_bytes + delta] + bytes(max(delta, 0))
-        out.append((f"payload_bytes{delta:+d}", blob, E_FIELD))
-    add("length_only", E_LENGTH, payload_bytes=n_bytes)  # control: unchanged header
-    out[-1] = ("length_only", good + b"\x00\x00\x00\x00", E_LENGTH)
+        out.append((f"payload_bytes{delta:+d}", blob, CODES["ECAM_E_PAYLOAD_BYTES"]))
+    out.append(("length_only", good + b"\x00\x00\x00\x00", E_LENGTH))
     add("payload_crc", E_PAYLOAD_CRC, payload_crc32=cubic.header_values()["payload_crc32"] ^ 1)
+    # version 2: the net stroke N/D per period in bytes 48..59 (their reserved rule is off)
+    def net(n, d, periodic=True):
+        return dict(format_version=2, flags=1 if periodic else 0, reserved_48=struct.pack("<qI", n, d))
+
+    for n, d, expected in ((360000, 1, OK), (-7, 3, OK), (2**31 - 1, 1, OK), (-(2**31) + 1, 1, OK),
+                           (NET_MAX, 2**32 - 1, OK), (NET_MAX + 1, 2**32 - 1, "ECAM_E_NET_STROKE"),
+                           (1, 2**32 - 1, OK), (-(2**32) + 1, 2**32 - 1, "ECAM_E_NET_STROKE"),
+                           (360000, 0, "ECAM_E_NET_STROKE"), (720000, 2, "ECAM_E_NET_STROKE"),
+                           (0, 5, "ECAM_E_NET_STROKE"), (2**31, 1, "ECAM_E_NET_STROKE"),
+                           (-(2**31), 1, "ECAM_E_NET_STROKE"), (-(2**63), 1, "ECAM_E_NET_STROKE")):  # fmt: skip
+        add(f"net{n}/{d}", expected if expected == OK else CODES[expected], table=zero_cubic, **net(n, d))
+    add("net_not_periodic", CODES["ECAM_E_NET_STROKE"], table=zero_cubic, **net(1, 1, periodic=False))
+    add("net0/1_version2", OK, table=zero_cubic, **net(0, 1))  # "none", written as version 2
+    add("version2_reserved29", CODES["ECAM_E_RESERVED"], table=zero_cubic, reserved_29=b"\x01\x00\x00",
+        **net(1, 1))  # fmt: skip
+    add("version1_net_bytes", CODES["ECAM_E_RESERVED"], table=zero_cubic, reserved_48=struct.pack("<qI", 1, 1))
+    # the overflow proof: one blob per rule, its payload pushed past exactly that bound
+    out += proof_rule_set()
     out.append(("valid", good, OK))
+    return out
+
+
+def proof_rule_set() -> list:
+    """(name, blob, expected) reaching each rule of the overflow proof, with both CRCs valid."""
+    out = []
+
+    def add(name, expected, **table):
+        blob = cb.make_blob(cb.Table(**table))
+        assert proof_status(blob) == CODES[expected], (name, proof_status(blob))
+        out.append((name, blob, CODES[expected]))
+
+    base = dict(degree=3, periodic=True, master_counts=3000, tau_bits=11, work_bits=20, slope_bits=20,
+                curvature_bits=0, slope_preshift=0, position_bits=0)  # fmt: skip
+    add("point_range", "ECAM_E_POINT_RANGE", **dict(base, work_bits=40, position_bits=0, slope_bits=40,
+        slope_preshift=4, position=(2**22, 0, 0), slope=(0, 0, 0)))  # fmt: skip
+    add("horner_range", "ECAM_E_HORNER_RANGE", **dict(base, work_bits=40, slope_bits=0, slope_preshift=4,
+        position=(0, 0, 0), slope=(2**31 - 1, 0, 0)))  # fmt: skip
+    # h = 1 (F = 0, tau always 0): no Horner product, so only the sums bound the coefficients
+    h1 = dict(base, master_counts=2, tau_bits=0, work_bits=40, slope_bits=0, position=(0, 0, 0))
+    add("sum_range", "ECAM_E_SUM_RANGE", **dict(h1, slope=(2**31 - 1, 0, 0)))
+    add("position_range", "ECAM_E_POSITION_RANGE", **dict(base, position=(2**31 - 1, 0, 0), slope=(2**20, 0, 0),
+        work_bits=0, slope_bits=0))  # fmt: skip
+    add("slope_horner_range", "ECAM_E_SLOPE_HORNER_RANGE", **dict(h1, slope=(0, 2**21, 0)))  # q = 5 * 2^61
+    add("slope_product", "ECAM_E_SLOPE_PRODUCT", **dict(base, tau_bits=30, work_bits=0, slope_bits=0,
+        position=(0, 1000, 0), slope=(0, 0, 0)))  # fmt: skip
+    add("slope_range", "ECAM_E_SLOPE_RANGE", **dict(base, work_bits=0, slope_bits=0, slope_preshift=27,
+        position=(0, 1000, 0), slope=(0, 0, 0)))  # fmt: skip
     return out
 
 
@@ -633,6 +764,8 @@ def table_from_blob(blob: bytes) -> cb.Table:
         curvature_bits=v["curvature_bits"], slope_preshift=v["slope_preshift"],
         position_bits=v["position_bits"], position=arrays[0],
         slope=arrays[1] if degree >= 3 else (), curvature=arrays[2] if degree == 5 else (),
+        **(dict(zip(("net_num", "net_den"), struct.unpack("<qI", v["reserved_48"])))
+           if v["format_version"] == 2 else {}),
     )  # fmt: skip
     assert cb.make_blob(table) == blob
     return table
@@ -644,7 +777,8 @@ def test_golden_vectors(request, csv, sanitized):
     cli = request.getfixturevalue("cli_asan" if sanitized else "cli")
     rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
     queries, expected = rows[:, 0], rows[:, 1:]
-    assert_same(queries, c_lookups(cli, csv.with_suffix(".bin"), queries, sanitized), expected,
+    wrapped = np.stack([cb.int32_wrap(expected[:, 0]), expected[:, 1]], 1)  # a net stroke passes int32
+    assert_same(queries, c_lookups(cli, csv.with_suffix(".bin"), queries, sanitized), wrapped,
                 f"C runtime vs {csv.name}")  # fmt: skip
     if not sanitized:
         table = table_from_blob(csv.with_suffix(".bin").read_bytes())
@@ -720,3 +854,226 @@ def test_ecam_camtable_agrees(cli, build_dir, case):
     positions, slopes = cam.lookup(queries), cam.slope(queries)
     got = np.stack([np.asarray(positions, dtype=np.int64), np.asarray(slopes, dtype=np.int64)], 1)
     assert_same(queries, got, expected, "ecam.CamTable " + _case_id(case))
+
+
+# --------------------------------------------------------------------------------------------
+# Every arithmetic path, every build: warnings, and the bits of the paths other hosts take
+# --------------------------------------------------------------------------------------------
+
+# The warning set the runtime promises to be clean under (README, FORMAT.md).
+RUNTIME_WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Wconversion", "-Wsign-conversion", "-Wcast-align",
+                    "-pedantic", "-Werror"]  # fmt: skip
+# The arithmetic paths: 64-bit cores (one multiply + shift per Horner step, __int128 wrap), the
+# portable wrap without __int128, and the 32-bit cores' path (high-word products, 32x32 scales).
+ARITHMETIC_PATHS = {"word64": [], "no_int128": ["-DECAM_NO_INT128"], "word32": ["-DECAM_WORD_BITS=32"]}
+
+
+@pytest.mark.parametrize("opt", ["-O0", "-O2", "-Os"])
+@pytest.mark.parametrize("path", list(ARITHMETIC_PATHS))
+def test_runtime_compiles_without_warnings(build_dir, path, opt):
+    cc = _compiler()
+    if cc is None:
+        pytest.skip("no C compiler (cc/gcc/clang) on PATH")
+    for source in ("ecam_table.c", "ecam_minimal.c"):
+        cmd = [cc, *RUNTIME_WARNINGS, opt, *ARITHMETIC_PATHS[path], "-c", "-o", str(build_dir / "w.o"),
+               str(FIRMWARE / source)]  # fmt: skip
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        assert proc.returncode == 0 and proc.stderr == "", f"{' '.join(cmd)}\n{proc.stderr}"
+
+
+@pytest.fixture(scope="session")
+def path_clis(build_dir) -> dict:
+    return {name: _compile(build_dir / f"ecam_cli_{name}", CLI_SOURCES, STRICT_FLAGS + flags)
+            for name, flags in ARITHMETIC_PATHS.items() if flags}  # fmt: skip
+
+
+@pytest.mark.parametrize("path", [p for p, flags in ARITHMETIC_PATHS.items() if flags])
+def test_other_arithmetic_paths_match_reference(path_clis, build_dir, path):
+    """The paths a 32-bit core or a compiler without __int128 takes, run here bit for bit."""
+    cli = path_clis[path]
+    for case in MAIN_CASES + EDGE_CASES:
+        table, blob, queries, expected = case_data(case)
+        n = min(60_000, queries.size)
+        blob_path = write_blob(build_dir, f"{path}-{_case_id(case)}.ecam", blob)
+        assert_same(queries[:n], c_lookups(cli, blob_path, queries[:n]), expected[:n], f"{path} {_case_id(case)}")
+    for csv in GOLDEN:
+        rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+        wrapped = np.stack([cb.int32_wrap(rows[:, 1]), rows[:, 2]], 1)  # a net stroke passes int32
+        assert_same(rows[:, 0], c_lookups(cli, csv.with_suffix(".bin"), rows[:, 0]), wrapped, f"{path} {csv.name}")
+
+
+# --------------------------------------------------------------------------------------------
+# Switching tables while an interrupt reads (ecam_table_pair)
+# --------------------------------------------------------------------------------------------
+
+PAIR_HARNESS = r"""
+#define _POSIX_C_SOURCE 200809L
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/time.h>
+#include "ecam_table.h"
+
+#define QUERIES 64
+static ecam_table_pair pair;
+static int64_t masters[QUERIES];
+static int32_t expected[2][QUERIES];
+static volatile sig_atomic_t ticks, seen_a, seen_b, seen_invalid, mixed, garbage;
+
+/* The "interrupt": one acquire, then lookups in that table only. Each invocation must see table
+ * A, table B or (before the first load) a table that is not ready; never a mix, never garbage. */
+static void on_tick(int sig)
+{
+    const ecam_table *t = ecam_pair_acquire(&pair);
+    int a = 0, b = 0, invalid = 0, k;
+
+    (void)sig;
+    for (k = 0; k < QUERIES; k++) {
+        const int32_t p = ecam_table_position(t, masters[k]);
+        if (p == expected[0][k] && p != expected[1][k]) a++;
+        else if (p == expected[1][k] && p != expected[0][k]) b++;
+        else if (p == ECAM_INVALID) invalid++;
+        else if (p != expected[0][k]) garbage++;
+    }
+    if ((a > 0) + (b > 0) + (invalid > 0) > 1) mixed++;
+    if (a) seen_a++;
+    if (b) seen_b++;
+    if (invalid) seen_invalid++;
+    ticks++;
+}
+
+static unsigned char *slurp(const char *path, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    unsigned char *data = malloc(1 << 20);
+    if (f == NULL || data == NULL) exit(3);
+    *len = fread(data, 1, 1 << 20, f);
+    fclose(f);
+    return data;
+}
+
+int main(int argc, char **argv)
+{
+    size_t len_a, len_b, len_bad;
+    unsigned char *blob_a = slurp(argv[1], &len_a), *blob_b = slurp(argv[2], &len_b);
+    unsigned char *bad = slurp(argv[1], &len_bad);
+    ecam_table ta, tb;
+    struct itimerval timer;
+    struct sigaction action;
+    long loads = 0, busy = 0, rejected = 0, k;
+    int rc;
+
+    if (argc != 4) return 2;
+    bad[70] ^= 1u; /* payload CRC mismatch: must be rejected without touching the active table */
+    if (ecam_table_init(&ta, blob_a, len_a) || ecam_table_init(&tb, blob_b, len_b)) return 4;
+    for (k = 0; k < QUERIES; k++) {
+        masters[k] = (int64_t)(k * 7919) - 100000;
+        expected[0][k] = ecam_table_position(&ta, masters[k]);
+        expected[1][k] = ecam_table_position(&tb, masters[k]);
+    }
+    ecam_pair_init(&pair);
+    /* Without interrupts: the protocol's states, deterministically. */
+    printf("before_load=%d\n", (int)ecam_table_position(ecam_pair_acquire(&pair), 0));
+    printf("first_load=%d\n", ecam_pair_load(&pair, blob_a, len_a));
+    printf("idle_before_interrupt=%d\n", ecam_pair_idle(&pair));
+    printf("second_load_busy=%d\n", ecam_pair_load(&pair, blob_b, len_b));
+    printf("acquired_a=%d\n", ecam_table_position(ecam_pair_acquire(&pair), masters[5]) == expected[0][5]);
+    printf("idle=%d\n", ecam_pair_idle(&pair));
+    printf("bad_load=%d\n", ecam_pair_load(&pair, bad, len_bad));
+    printf("still_a=%d\n", ecam_table_position(ecam_pair_acquire(&pair), masters[5]) == expected[0][5]);
+    /* With a real asynchronous interrupt: a 20 us timer signal, while loads alternate. */
+    memset(&action, 0, sizeof action);
+    action.sa_handler = on_tick;
+    sigaction(SIGALRM, &action, NULL);
+    timer.it_interval.tv_sec = 0;
+    timer.it_interval.tv_usec = 20;
+    timer.it_value = timer.it_interval;
+    setitimer(ITIMER_REAL, &timer, NULL);
+    while (ticks < atol(argv[3])) {
+        rc = ecam_pair_load(&pair, (loads & 1) ? blob_a : blob_b, (loads & 1) ? len_a : len_b);
+        if (rc == ECAM_OK) loads++;
+        else if (rc == ECAM_E_BUSY) busy++;
+        else return 5;
+        if (ecam_pair_load(&pair, bad, len_bad) != ECAM_E_PAYLOAD_CRC) return 6;
+        rejected++;
+    }
+    timer.it_value.tv_usec = 0;
+    timer.it_interval.tv_usec = 0;
+    setitimer(ITIMER_REAL, &timer, NULL);
+    printf("ticks=%ld loads=%ld busy=%ld rejected=%ld seen_a=%ld seen_b=%ld seen_invalid=%ld mixed=%ld garbage=%ld\n",
+           (long)ticks, loads, busy, rejected, (long)seen_a, (long)seen_b, (long)seen_invalid, (long)mixed,
+           (long)garbage);
+    return 0;
+}
+"""
+
+
+def test_table_switch_while_an_interrupt_reads(build_dir):
+    """ecam_table_pair: the main loop keeps loading tables A and B (and a corrupt blob) while a
+    20 us timer signal (a real asynchronous interrupt of the main loop) looks up 64 masters per
+    invocation. Every invocation sees A or B entirely; a rejected blob never disturbs the table
+    in use; the spare is only rewritten after the interrupt has moved to the new table."""
+    if os.name != "posix":
+        pytest.skip("needs POSIX timer signals")
+    source = build_dir / "pair_harness.c"
+    source.write_text(PAIR_HARNESS)
+    exe = _compile(build_dir / "pair_harness", [source, *RUNTIME], ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"])
+    rng = np.random.default_rng(91)
+    a = cb.random_table(rng, 5, True, 360_000, 60)
+    b = cb.random_table(rng, 5, True, 360_000, 60)
+    path_a, path_b = write_blob(build_dir, "pair_a.ecam", cb.make_blob(a)), write_blob(build_dir, "pair_b.ecam", cb.make_blob(b))
+    proc = subprocess.run([str(exe), str(path_a), str(path_b), "4000"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    head = dict(line.split("=", 1) for line in proc.stdout.splitlines() if line.count("=") == 1)
+    assert head["before_load"] == str(ECAM_INVALID)
+    assert head["first_load"] == "0" and head["idle_before_interrupt"] == "0"
+    assert head["second_load_busy"] == str(CODES["ECAM_E_BUSY"])
+    assert head["acquired_a"] == "1" and head["idle"] == "1"
+    assert head["bad_load"] == str(E_PAYLOAD_CRC) and head["still_a"] == "1"
+    stats = dict(item.split("=") for item in proc.stdout.splitlines()[-1].split())
+    stats = {k: int(v) for k, v in stats.items()}
+    assert stats["mixed"] == 0 and stats["garbage"] == 0, stats
+    assert stats["seen_invalid"] == 0, stats  # a table was active before the timer started
+    assert stats["ticks"] >= 4000 and stats["loads"] >= 100 and stats["seen_a"] > 0 and stats["seen_b"] > 0, stats
+
+
+# --------------------------------------------------------------------------------------------
+# Net stroke (format version 2): step 7 on every arithmetic path
+# --------------------------------------------------------------------------------------------
+
+# N/D per period: reduced, |N| < D 2^31; the largest magnitudes the rule allows included
+NET_MAX = 9223372034707292159  # the largest N < (2^32 - 1) 2^31 with gcd(N, 2^32 - 1) = 1
+NET_STROKES = [(360000, 1), (-7, 3), (1, 2**32 - 1), (-(2**32) + 2, 2**32 - 1), (2**31 - 1, 1),
+               (-(2**31) + 1, 1), (2**62 + 7, 2**32 - 1), (NET_MAX, 2**32 - 1), (-NET_MAX, 2**32 - 1),
+               (90000009, 250)]  # fmt: skip
+
+
+def net_stroke_cases() -> list:
+    """(name, blob, queries, expected (n, 2) as the C runtime returns it: int32 positions)."""
+    import dataclasses
+
+    rng = np.random.default_rng(934)
+    out = []
+    for k, (num, den) in enumerate(NET_STROKES):
+        degree = (1, 3, 5)[k % 3]
+        M, N = ((2**20, 64), (360_000, 60), (3, 1), (2**31, 2))[k % 4]
+        table = dataclasses.replace(cb.random_table(rng, degree, True, M, N), net_num=num, net_den=den)
+        queries = cb.random_queries(rng, table, 4000)
+        expected = np.array([cb.reference_lookup(table, m) for m in queries.tolist()], dtype=np.int64)
+        cam = CamTable.from_bytes(cb.make_blob(table))
+        python = np.stack([np.asarray(cam.lookup(queries), dtype=np.int64), np.asarray(cam.slope(queries))], 1)
+        assert_same(queries, python, expected, f"CamTable vs tests/c_blobs.py, net {num}/{den}")
+        expected[:, 0] = cb.int32_wrap(expected[:, 0])
+        out.append((f"net{num}/{den}", cb.make_blob(table), queries, expected))
+    return out
+
+
+@pytest.mark.parametrize("path", list(ARITHMETIC_PATHS))
+def test_net_stroke_lookups_on_every_path(cli, path_clis, build_dir, path):
+    """Version-2 tables: the position adds floor((k N + floor(D/2)) / D) for the k whole periods
+    passed, and the C runtime returns its int32 wrap; N/D at the edges of their rules."""
+    exe = cli if path == "word64" else path_clis[path]
+    for name, blob, queries, expected in net_stroke_cases():
+        blob_path = write_blob(build_dir, f"{path}-{name.replace('/', '_')}.ecam", blob)
+        assert_same(queries, c_lookups(exe, blob_path, queries), expected, f"{path} {name}")

@@ -11,6 +11,7 @@ from ecam.export import plain
 
 from ..progress import progress_bar
 from .c_runtime import CRuntime
+from .instructions import instruction_rows
 from .plan import MASTER_COUNTS, RIG_CYCLES_HZ, STROKE_COUNTS, bench_plan, bench_queries, plan_jobs
 from .plot import plot_pareto
 from .rig import bench_rig
@@ -32,7 +33,7 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
     """
     plan = bench_plan(quick)
     jobs = plan_jobs(plan)
-    total = len(jobs) + len(RIG_CYCLES_HZ)
+    total = len(jobs) + len(RIG_CYCLES_HZ) + 1  # + the instruction counts
     done = 0
 
     def step():
@@ -89,6 +90,10 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
         if c_failures:
             rows.append({"kind": "note", "topic": "c",
                          "text": f"C runtime failed on {len(c_failures)} tables, first: {c_failures[0]}"})
+        counts = directory / "instructions"
+        counts.mkdir()
+        rows += instruction_rows(counts, quick)
+        step()
     rows += bench_rig(plan.rig_repeats, progress=step)
     rows += evaluate_targets(rows)
     return [plain(row) for row in rows]

@@ -12,7 +12,7 @@ def _cell(value, fmt="{:.1f}", width=7):
 def format_text(rows: list[dict]) -> str:
     """The human report: notes, the table, the rig and the targets."""
     lines = ["ecam bench: error against bytes and lookup cost of the cam-table kinds", ""]
-    lines += [f"  {r['text']}" for r in rows if r.get("kind") == "note"]
+    lines += [f"  {r['text']}" for r in rows if r.get("kind") == "note" and r.get("topic") not in _COUNT_TOPICS]
     lines += [
         "",
         "  err: the certificate's measured max error over every master count (bound: its certified bound);",
@@ -61,6 +61,7 @@ def format_text(rows: list[dict]) -> str:
     notes = next((r.get("notes") for r in rig if r.get("notes")), None)
     if notes:
         lines += [f"  ({n})" for n in notes]
+    lines += _instruction_lines(rows)
     targets = [r for r in rows if r.get("kind") == "target"]
     if targets:
         lines += ["", "targets (shown, not asserted):"]
@@ -69,6 +70,30 @@ def format_text(rows: list[dict]) -> str:
         value = "-" if t["value"] is None else f"{t['value']:.3g}"
         lines.append(f"  [{mark}] {TARGET_TEXT.get(t['name'], t['name'])}: {value} -> {t['verdict']}")
     return "\n".join(lines) + "\n"
+
+
+_COUNT_TOPICS = ("instructions", "cortex-m4")
+
+
+def _instruction_lines(rows: list[dict]) -> list[str]:
+    """Instructions per lookup (exact counts) and the Cortex-M4 footprint."""
+    counted = [r for r in rows if r.get("kind") == "note" and r.get("topic") in _COUNT_TOPICS]
+    if not counted:
+        return []
+    lines = ["", "instructions per lookup (exact counts: callgrind on x86-64, a QEMU trace on Cortex-M4; the runtime's",
+             "ecam_table_position against ecam_minimal.c, the same table's lookup hand-written with its format as",
+             "constants; inside = masters in [0, M), wide = any int64; limits 2x inside, 3x wide):"]  # fmt: skip
+    head = f"  {'target':10s} {'interp':8s} {'points':>6s} {'h':>6s} | {'inside':>7s} {'wide':>7s} {'minimal':>7s} | {'in/min':>6s} {'wide/min':>8s}  verdict"
+    table = [r for r in counted if "instructions_minimal" in r]
+    if table:
+        lines += [head, "  " + "-" * (len(head) - 2)]
+    for r in table:
+        verdict = "met" if r["met"] else "MISSED" + ("" if r["checksums_match"] else " (checksums differ)")
+        lines.append(f"  {r['target']:10s} {r['interp']:8s} {r['points']:6d} {r['step_counts']:6d} | "
+                     f"{r['instructions_runtime_inside']:7.1f} {r['instructions_runtime_wide']:7.1f} "
+                     f"{r['instructions_minimal']:7.1f} | {r['ratio_inside']:5.2f}x {r['ratio_wide']:7.2f}x  {verdict}")
+    lines += [f"  {r['text']}" for r in counted if "instructions_minimal" not in r]
+    return lines
 
 
 # --- command line -------------------------------------------------------------------------------

@@ -1,0 +1,15 @@
+/*
+ * ecam_minimal.h - minimal fixed-point lookups of one known table, for measurement only
+ * (see ecam_minimal.c). Arrays are aligned native int32; master is inside [0, M).
+ */
+#ifndef ECAM_MINIMAL_H
+#define ECAM_MINIMAL_H
+
+#include <stdint.h>
+
+int32_t ecam_minimal_linear(const int32_t *position, uint32_t master);
+int32_t ecam_minimal_cubic(const int32_t *position, const int32_t *slope, uint32_t master);
+int32_t ecam_minimal_quintic(const int32_t *position, const int32_t *slope,
+                             const int32_t *curvature, uint32_t master);
+
+#endif /* ECAM_MINIMAL_H */

@@ -490,12 +490,13 @@ def test_master_that_reverses_jitters_and_stops_inside_a_segment(rig, tables):
 
 
 def test_motor_rated_torque_zero_is_refused_and_the_drive_keeps_running(rig):
-    # 0x6076 = 0 was accepted, then every SYNC divided by it (issue 14, item 11).
+    # 0x6076 = 0 was accepted, then every SYNC divided by it (issue 14, item 11). The EDS gives
+    # it LowLimit 1: CiA 301 abort 0x06090032, value too low.
     rig.boot_and_enable()
     before = rig.node.sdo[0x6076].raw
     with pytest.raises(canopen.SdoAbortedError) as error:
         rig.node.sdo[0x6076].raw = 0
-    assert error.value.code == drv.ABORT_INVALID_VALUE
+    assert error.value.code == drv.ABORT_VALUE_TOO_LOW
     assert rig.node.sdo[0x6076].raw == before
     rig.master.sync.transmit()
     rig.master.settle()

@@ -5,8 +5,11 @@ server with segmented transfer) plus what canopen 2.4 leaves to the application,
 protocol service:
 
 * :mod:`~hil_sim.drive.objects`: the EDS, its loader, and a name for every object the drive uses;
-* :mod:`~hil_sim.drive.sdo`: the SDO server (the indicated size of a segmented download is
-  enforced, an abort drops the partial buffer), the node, the stored objects, the abort codes;
+* :mod:`~hil_sim.drive.sdo`: the SDO server (expedited and segmented, CiA 301: every frame a
+  client may send, short, stray or garbled, gets the CiA 301 abort naming the right object,
+  a stalled transfer times out, the indicated size of a segmented download is enforced), the
+  node, the stored objects, the abort codes; every written number is checked against the
+  limits the EDS documents;
 * :mod:`~hil_sim.drive.nmt`: the **NMT** slave written here (boot-up, pre-operational,
   operational, stopped, resets) with a heartbeat produced on the drive's own clock (canopen's
   uses a timer thread);
@@ -27,8 +30,8 @@ protocol service:
   **SYNC** cycle: each SYNC latches the synchronous RPDOs, advances the drive by one
   interpolation period (0x60C2), runs :meth:`ServoAxis.cycle`, then sends the synchronous TPDOs.
 
-canopen 2.4 internals this relies on (canopen is pinned below 2.5): the SDO server's transfer
-state (``_buffer``, ``_index``), ``LocalNode._write_callbacks`` and ``LocalNode._find_object``.
+canopen 2.4 internals this relies on (canopen is pinned below 2.5): ``LocalNode._write_callbacks``
+and ``LocalNode._find_object``.
 
 Two ways to run it:
 
@@ -52,14 +55,16 @@ from hil_sim.drive.objects import (
     EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od, saturate_int32, wrap_int32,
 )
 from hil_sim.drive.sdo import (
-    ABORT_CANNOT_MAP, ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE,
-    ABORT_PDO_LENGTH,
+    ABORT_CANNOT_MAP, ABORT_CANNOT_STORE, ABORT_COMMAND_SPECIFIER, ABORT_DEVICE_STATE,
+    ABORT_INVALID_VALUE, ABORT_PDO_LENGTH, ABORT_TIMEOUT, ABORT_TOGGLE, ABORT_VALUE_TOO_HIGH,
+    ABORT_VALUE_TOO_LOW, SDO_TIMEOUT_S,
 )
 from hil_sim.drive.virtual_drive import VirtualDrive
 
 __all__ = [
-    "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_DEVICE_STATE", "ABORT_INVALID_VALUE",
-    "ABORT_PDO_LENGTH", "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
+    "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_COMMAND_SPECIFIER", "ABORT_DEVICE_STATE",
+    "ABORT_INVALID_VALUE", "ABORT_PDO_LENGTH", "ABORT_TIMEOUT", "ABORT_TOGGLE",
+    "ABORT_VALUE_TOO_HIGH", "ABORT_VALUE_TOO_LOW", "SDO_TIMEOUT_S", "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
     "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_FOLLOWING_ERROR",
     "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
     "ERROR_REGISTER_PROFILE", "PROCESS_OBJECTS", "VirtualDrive", "interpolation_period_s",

@@ -76,6 +76,9 @@ TRANSITIONS = {
     (QUICK_STOP_ACTIVE, "enable_operation"): OPERATION_ENABLED,     # 16
     (FAULT, "fault_reset"): SWITCH_ON_DISABLED,                     # 15
 }
+# Transitions without a command: 0 and 1 at power-on (NOT READY TO SWITCH ON, then SWITCH ON
+# DISABLED), 13 on a fault from any state (FAULT REACTION ACTIVE), 14 when the fault reaction is
+# complete (FAULT). The drive applies them itself (hil_sim.drive.power_state).
 #: States in which the power stage drives the motor.
 ENERGIZED = frozenset({OPERATION_ENABLED, QUICK_STOP_ACTIVE, FAULT_REACTION_ACTIVE})
 

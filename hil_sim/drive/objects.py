@@ -44,6 +44,7 @@ TPDO_COMMUNICATION_PARAMETER = 0x1800
 TPDO_MAPPING_PARAMETER = 0x1A00
 PDO_PARAMETERS = range(0x1400, 0x1C00)  # all communication and mapping parameters
 MAPPING_PARAMETERS = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))  # RPDO, TPDO
+COMMUNICATION_PARAMETERS = (range(0x1400, 0x1600), range(0x1800, 0x1A00))  # RPDO, TPDO
 COB_ID_USED_BY_PDO = 1  # subindex of a communication parameter
 TRANSMISSION_TYPE = 2  # subindex of a communication parameter
 NUMBER_OF_MAPPED_OBJECTS = 0  # subindex of a mapping parameter

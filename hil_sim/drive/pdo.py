@@ -15,11 +15,11 @@ from canopen.sdo import SdoAbortedError
 from hil_sim.drive.cia402 import OPERATIONAL
 from hil_sim.drive.emcy import EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION
 from hil_sim.drive.objects import (
-    CAN_ID_MASK, COB_ID_SYNC, COB_ID_USED_BY_PDO, MAPPING_PARAMETERS, NUMBER_OF_MAPPED_OBJECTS,
-    PDO_NOT_VALID, RPDO_COMMUNICATION_PARAMETER, RPDO_MAPPING_PARAMETER,
+    CAN_ID_MASK, COB_ID_SYNC, COB_ID_USED_BY_PDO, COMMUNICATION_PARAMETERS, MAPPING_PARAMETERS,
+    NUMBER_OF_MAPPED_OBJECTS, PDO_NOT_VALID, RPDO_COMMUNICATION_PARAMETER, RPDO_MAPPING_PARAMETER,
     TPDO_COMMUNICATION_PARAMETER, TPDO_MAPPING_PARAMETER, TRANSMISSION_TYPE, ObjectKey,
 )
-from hil_sim.drive.sdo import ABORT_CANNOT_MAP, ABORT_PDO_LENGTH
+from hil_sim.drive.sdo import ABORT_CANNOT_MAP, ABORT_INVALID_VALUE, ABORT_PDO_LENGTH
 
 _STRUCT_CODES = {  # canopen data type -> struct code for PDO packing
     0x01: "?", 0x02: "b", 0x03: "h", 0x04: "i", 0x05: "B", 0x06: "H", 0x07: "I",
@@ -35,6 +35,15 @@ MAX_PDO_BITS = 64  # one classic CAN frame
 SYNCHRONOUS_ACYCLIC = 0
 LAST_SYNCHRONOUS = 240
 FIRST_EVENT_DRIVEN = 254
+
+# CiA 301 COB-ID bits beside the CAN-ID.
+FRAME_29_BIT = 1 << 29
+SYNC_PRODUCER = 1 << 30  # 0x1005: the node generates the SYNC
+#: CAN-IDs CiA 301 reserves for NMT, SDO, heartbeat/boot-up and LSS: no PDO or SYNC on them
+#: (a PDO on 0x601 would take the SDO requests as process data).
+RESTRICTED_CAN_IDS = frozenset([0x000, *range(0x001, 0x080), *range(0x101, 0x181),
+                                *range(0x581, 0x600), *range(0x601, 0x680), *range(0x6E0, 0x700),
+                                *range(0x701, 0x780), *range(0x780, 0x800)])
 
 
 class Pdo:
@@ -68,22 +77,52 @@ def mapped_object(objects, entry: int, transmit: bool) -> ODVariable:
     return obj
 
 
+def check_cob_id(value: int, sync: bool = False) -> None:
+    """A COB-ID the drive can use (CiA 301, 0x1005 and the PDO communication parameters), else
+    abort 0x06090030: an 11-bit CAN-ID (bit 29, the 29-bit frame, is not supported, and bits
+    11..28 are then 0), none of the CAN-IDs CiA 301 restricts (NMT, SDO, heartbeat, LSS...)
+    while the COB-ID is valid, and for 0x1005 bit 30 clear (the drive consumes the SYNC, it
+    does not produce it)."""
+    if value & FRAME_29_BIT or value & ~CAN_ID_MASK & 0x1FFFFFFF:
+        raise SdoAbortedError(ABORT_INVALID_VALUE)
+    if sync and value & SYNC_PRODUCER:
+        raise SdoAbortedError(ABORT_INVALID_VALUE)
+    valid = sync or not value & PDO_NOT_VALID
+    if valid and value & CAN_ID_MASK in RESTRICTED_CAN_IDS:
+        raise SdoAbortedError(ABORT_INVALID_VALUE)
+
+
+def check_transmission_type(value: int) -> None:
+    """CiA 301 transmission types the drive runs: 0..240 synchronous, 254/255 event-driven.
+    241..251 are reserved and 252/253 (TPDO on RTR only) need remote frames, which the drive
+    does not answer: abort 0x06090030."""
+    if not (value <= LAST_SYNCHRONOUS or value >= FIRST_EVENT_DRIVEN):
+        raise SdoAbortedError(ABORT_INVALID_VALUE)
+
+
 def check_pdo_write(objects, index: int, subindex: int, value: int) -> None:
-    """Refuse mappings the drive cannot pack (CiA 301 abort codes)."""
+    """Refuse PDO parameters the drive cannot use and mappings it cannot pack (CiA 301 abort
+    codes)."""
+    if any(index in area for area in COMMUNICATION_PARAMETERS):
+        if subindex == COB_ID_USED_BY_PDO:
+            check_cob_id(value)
+        elif subindex == TRANSMISSION_TYPE:
+            check_transmission_type(value)
+        return
     if not any(index in area for area in MAPPING_PARAMETERS):
         return
     transmit = index >= TPDO_MAPPING_PARAMETER
+    count = objects.stored(ObjectKey(index, NUMBER_OF_MAPPED_OBJECTS))
+    entries = {sub: objects.stored(ObjectKey(index, sub)) for sub in range(1, count + 1)}
     if subindex != NUMBER_OF_MAPPED_OBJECTS:
-        if subindex <= objects.stored(ObjectKey(index, NUMBER_OF_MAPPED_OBJECTS)):
-            mapped_object(objects, value, transmit)  # an entry of the mapping in use
-        return
-    if value > MAX_MAPPED_OBJECTS:
-        raise SdoAbortedError(ABORT_PDO_LENGTH)
-    bits = 0
-    for sub in range(1, value + 1):
-        entry = objects.stored(ObjectKey(index, sub))
-        obj = mapped_object(objects, entry, transmit)
-        bits += len(obj)
+        if subindex > count:  # not in the mapping in use: checked when the count takes it in
+            return
+        entries[subindex] = value  # an entry of the mapping in use: the PDO must still pack
+    else:
+        if value > MAX_MAPPED_OBJECTS:
+            raise SdoAbortedError(ABORT_PDO_LENGTH)
+        entries = {sub: objects.stored(ObjectKey(index, sub)) for sub in range(1, value + 1)}
+    bits = sum(len(mapped_object(objects, entry, transmit)) for entry in entries.values())
     if bits > MAX_PDO_BITS:
         raise SdoAbortedError(ABORT_PDO_LENGTH)
 

@@ -70,6 +70,8 @@ class PowerStateMachine:
         self.values[CONTROLWORD] = controlword
         previous, self.last_controlword = self.last_controlword, controlword
         if controlword & CW_FAULT_RESET:
+            # CiA 402: fault reset acts on the rising edge of bit 7, in FAULT only (transition
+            # 15); while bit 7 stays set no other command is taken.
             if not previous & CW_FAULT_RESET and self.state == FAULT:
                 self.fault_reset()
             return
@@ -91,7 +93,9 @@ class PowerStateMachine:
     # --------------------------------------------------------------------------- states
     def enter(self, new_state: str) -> None:
         if new_state == OPERATION_ENABLED and self.state != QUICK_STOP_ACTIVE:
-            # CSP starts from where the motor is: no jump when the master's first target lags.
+            # CSP starts from where the motor is (transitions 4 and 3+4, also after a fault
+            # reset): no jump when the master's first target lags, no stale target from before
+            # a fault (issue 10, item 5).
             position = wrap_int32(self._position_counts())
             self.values[TARGET_POSITION] = position
             self.values[VELOCITY_OFFSET] = 0
@@ -103,7 +107,12 @@ class PowerStateMachine:
         self.update_statusword()
 
     def fault(self, code: int, register: int) -> None:
-        """Enter FAULT REACTION ACTIVE, set 0x603F / 0x1001 and send the EMCY."""
+        """Enter FAULT REACTION ACTIVE, set 0x603F / 0x1001 and send the EMCY.
+
+        CiA 402 transition 13: a fault, from any state, starts the fault reaction; the motor is
+        held where it is. The drive's next cycle completes the reaction and passes to FAULT
+        by itself (transition 14, :meth:`reaction_done`); only a fault reset leaves FAULT.
+        """
         if self.state in (FAULT, FAULT_REACTION_ACTIVE):
             return
         self.values[ERROR_CODE] = code
@@ -111,7 +120,16 @@ class PowerStateMachine:
         self.enter(FAULT_REACTION_ACTIVE)
         self.emcy.send(code, self.values[ERROR_REGISTER])
 
+    def reaction_done(self) -> None:
+        """CiA 402 transition 14: the fault reaction (hold, then power stage off) is complete,
+        FAULT REACTION ACTIVE passes to FAULT without a command."""
+        if self.state == FAULT_REACTION_ACTIVE:
+            self.enter(FAULT)
+
     def fault_reset(self) -> None:
+        """CiA 402 transition 15: a rising edge of controlword bit 7 in FAULT clears the error
+        (0x603F, 0x1001, EMCY 0x0000 "error reset") and enters SWITCH ON DISABLED; enabling
+        again then starts from the actual position (:meth:`enter`)."""
         self.values[ERROR_CODE] = 0
         self.values[ERROR_REGISTER] = 0
         self.enter(SWITCH_ON_DISABLED)

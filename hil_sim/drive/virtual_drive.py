@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 
 import can
+from canopen.objectdictionary import NUMBER_TYPES
 from canopen.sdo import SdoAbortedError
 
 from ecam.errors import InputError
@@ -28,13 +29,17 @@ from hil_sim.drive.objects import (
     VELOCITY_ACTUAL_VALUE, VELOCITY_OFFSET, interpolation_period_s, load_od, saturate_int32,
     wrap_int32,
 )
-from hil_sim.drive.pdo import PdoEngine, check_pdo_write
+from hil_sim.drive.pdo import PdoEngine, check_cob_id, check_pdo_write
 from hil_sim.drive.power_state import PowerStateMachine
 from hil_sim.drive.runner import Runner
 from hil_sim.drive.sdo import (
-    ABORT_DEVICE_STATE, ABORT_INVALID_VALUE, DriveNode, DriveSdoServer, StoredObjects,
+    ABORT_DEVICE_STATE, ABORT_VALUE_TOO_HIGH, ABORT_VALUE_TOO_LOW, DriveNode, DriveSdoServer,
+    StoredObjects, check_range,
 )
 from ecam.mechanics import Mechanics
+
+#: 0x6076 is UNSIGNED32 [mN m].
+UNSIGNED32_MAX = 0xFFFFFFFF
 
 #: Interpolation periods the drive accepts in 0x60C2 [s].
 MIN_INTERPOLATION_PERIOD_S = 1e-5
@@ -47,8 +52,8 @@ def _default_mechanics():
                      motor_torque_limit=4.0)
 
 
-#: Periods of 0x1006 without a SYNC after which the SYNC counts as lost: one late SYNC (jitter)
-#: is tolerated, a stopped master is not.
+#: Periods of 0x1006 without a SYNC after which the SYNC counts as lost: a late SYNC (jitter) or
+#: one lost frame is tolerated, a stopped master is not (CANopenNode allows 1.5 periods).
 SYNC_LOSS_PERIODS = 3
 
 
@@ -136,7 +141,7 @@ class VirtualDrive:
 
         # canopen's SDO server, NMT slave and heartbeat are replaced (see the package docstring).
         self.node.sdo = DriveSdoServer(SDO_RECEIVE_COB_ID + node_id, SDO_TRANSMIT_COB_ID + node_id,
-                                       self.node, self.cam.on_download_refused)
+                                       self.node, self.cam.on_download_refused, self._now)
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.network.add_node(self.node)
         self.network.unsubscribe(SDO_RECEIVE_COB_ID + node_id, self.node.sdo.on_request)
@@ -198,10 +203,11 @@ class VirtualDrive:
             return
         value = od.decode_raw(data)
         key = (index, subindex)
-        if key == MOTOR_RATED_TORQUE and value == 0:
-            # Motor rated torque divides every torque report (0x6077 is per mille of it): zero
-            # would make them infinite, so it is out of range (CiA 301 abort 0x06090030).
-            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        if od.data_type in NUMBER_TYPES:
+            # Every number within the limits the EDS documents (0x06090031 / 0x06090032), e.g.
+            # 0x6076 motor rated torque >= 1: it divides every torque report (0x6077 is per
+            # mille of it), and 0x60C2:01 >= 1: the interpolation period divides the velocities.
+            check_range(od, value)
         if key in self.values:
             self._set_value(key, value)
         elif index == PRODUCER_HEARTBEAT_TIME.index:
@@ -212,7 +218,10 @@ class VirtualDrive:
             check_pdo_write(self.objects, index, subindex, value)
             self.pdo.dirty = True
         elif index == COB_ID_SYNC.index:
+            check_cob_id(value, sync=True)
             self.pdo.dirty = True
+        elif index == COMMUNICATION_CYCLE_PERIOD.index and self._last_sync_wall is not None:
+            self._last_sync_wall = time.monotonic()  # a new period: its time-out counts from now
 
     def _set_value(self, key, value) -> None:
         """Write a live object and run its side effects."""
@@ -235,8 +244,12 @@ class VirtualDrive:
         period = interpolation_period_s(period_value, period_index)
         if subindex in (INTERPOLATION_TIME_PERIOD_VALUE.subindex,
                         INTERPOLATION_TIME_INDEX.subindex):
-            if not MIN_INTERPOLATION_PERIOD_S <= period <= MAX_INTERPOLATION_PERIOD_S:
-                raise SdoAbortedError(ABORT_INVALID_VALUE)
+            # The period the written part makes with the stored one, within what the control
+            # loop runs (CiA 301: value too low / too high).
+            if period < MIN_INTERPOLATION_PERIOD_S:
+                raise SdoAbortedError(ABORT_VALUE_TOO_LOW)
+            if period > MAX_INTERPOLATION_PERIOD_S:
+                raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
             self._make_axis(self.axis.position_counts, period)
 
     def _on_sdo_request(self, can_id, data, timestamp) -> None:
@@ -252,6 +265,7 @@ class VirtualDrive:
         self.nmt.boot()
 
     def _nmt_entered(self, state: int) -> None:
+        self._last_sync_wall = None  # the SYNC supervision starts again with the next SYNC
         if state != OPERATIONAL:
             self.pdo.latched.clear()
         else:
@@ -269,6 +283,7 @@ class VirtualDrive:
         if heartbeat is not None:
             self.objects.store(PRODUCER_HEARTBEAT_TIME, heartbeat)
         self.nmt.reset_heartbeat(self.objects.stored(PRODUCER_HEARTBEAT_TIME) / 1000.0)
+        self._last_sync_wall = None
         self.pdo.build()
 
     def _reset_application(self) -> None:
@@ -280,7 +295,8 @@ class VirtualDrive:
         values.update((key, self.objects.default(key)) for key in PROCESS_OBJECTS)
         values[CAM_LAST_ERROR_MESSAGE] = NO_ERROR_MESSAGE
         if self.mechanics.motor_torque_limit is not None:
-            values[MOTOR_RATED_TORQUE] = max(1, round(self.mechanics.motor_torque_limit * 1000.0))
+            values[MOTOR_RATED_TORQUE] = min(max(1, round(self.mechanics.motor_torque_limit * 1000.0)),
+                                            UNSIGNED32_MAX)
         self.cam.reset()
         self._make_axis(position)
         self._reset_communication()
@@ -314,18 +330,23 @@ class VirtualDrive:
 
     def _on_idle(self) -> None:
         self.nmt.service_heartbeat()
+        self.node.sdo.service()
         if self._wall_clock:
             self.supervise_sync(time.monotonic())
 
     def supervise_sync(self, now: float) -> None:
         """React once when the SYNC stops (an external master on the wall clock).
 
-        CiA 301 0x1006 (communication cycle period, us) non-zero arms the supervision: after
-        SYNC_LOSS_PERIODS periods without a SYNC, in NMT OPERATIONAL, the connection counts as
-        lost and CiA 402 0x6007 (abort connection option code) picks the reaction: 0 none,
-        1 fault (EMCY 0x8100, communication), 2 disable voltage, 3 quick stop. The next SYNC
-        re-arms it. The drive then keeps its own timer for one period, so the reaction (a
-        fault reaction ending in FAULT) takes effect without a SYNC.
+        CiA 301 0x1006 (communication cycle period, us) non-zero arms the supervision from the
+        next SYNC: after SYNC_LOSS_PERIODS periods without a SYNC, in NMT OPERATIONAL, the
+        connection counts as lost and CiA 402 0x6007 (abort connection option code) picks the
+        reaction: 0 none, 1 fault (EMCY 0x8100, CiA 301 "communication, generic", the code
+        CANopenNode reports its SYNC time-out with, 301/CO_SYNC.c), 2 disable voltage, 3 quick
+        stop. The next SYNC re-arms it, also after an NMT state change; a write of 0x1006
+        restarts the time-out. The drive then keeps its own timer for one period, so the
+        reaction (a fault reaction ending in FAULT, CiA 402 transitions 13 and 14) takes effect
+        without a SYNC. In lock-step (the rig) the master never stops the SYNC, and a dropped
+        one runs :meth:`free_run`.
         """
         period_us = self.objects.stored(COMMUNICATION_CYCLE_PERIOD)
         last = self._last_sync_wall
@@ -386,13 +407,14 @@ class VirtualDrive:
             values[TORQUE_ACTUAL_VALUE] = min(max(torque, -32768), 32767)
             state_machine.check_following_error(following_error, self.time_s)
             if state == FAULT_REACTION_ACTIVE:
-                state_machine.enter(FAULT)  # transition 14: the reaction (hold, then off) is done
+                state_machine.reaction_done()  # CiA 402 transition 14: hold, then off, done
         else:
             values[VELOCITY_ACTUAL_VALUE] = 0
             values[TORQUE_ACTUAL_VALUE] = 0
         self.cycles += 1
         self.time_s = self.cycles * self.cycle_s
         self.nmt.service_heartbeat()
+        self.node.sdo.service()
         if synchronous:
             self.pdo.send_sync_tpdos()
         self.pdo.send_event_tpdos()

@@ -16,9 +16,8 @@ from dataclasses import dataclass
 import can
 import numpy as np
 
-from hil_sim.drive import cia402
 from hil_sim.bus import DELIVER, BusLoad, FaultInjector
-from hil_sim.drive import VirtualDrive
+from hil_sim.drive import VirtualDrive, cia402
 from hil_sim.rig.network import LockstepMaster, pdo_codec
 from hil_sim.rig.plan import Plan
 

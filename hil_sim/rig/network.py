@@ -7,9 +7,8 @@ from __future__ import annotations
 import struct
 
 from ecam.errors import SimulationError
-from hil_sim.drive import cia402
 from hil_sim.bus import BusLoad, SimNetwork, frame_bits
-from hil_sim.drive import CAM_COMMAND_ACTIVATE, VirtualDrive
+from hil_sim.drive import CAM_COMMAND_ACTIVATE, VirtualDrive, cia402
 from hil_sim.rig.cam import CompiledCam
 from hil_sim.scene import Scene, interpolation_period
 

@@ -15,7 +15,7 @@ import stat
 import tomllib
 from pathlib import Path
 
-from . import validate
+import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .design import combination_segments
 from .errors import CamFileError
 from .laws import LAW_NAMES, LAWS

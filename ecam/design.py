@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from . import validate
+import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .laws import LAWS, Law, law as _law
 from .profile import CamProfile, Segment, check_span
 

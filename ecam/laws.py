@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import validate
+import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .linear import solve_exact
 
 __all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "law", "polynomial_from_boundary"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import validate
+import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .errors import InputError
 from .laws import DWELL, LAWS, SIDES, Law, law as _law, polynomial_from_boundary
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import validate
+import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .errors import InputError
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 

@@ -28,8 +28,8 @@ def _sources() -> dict[str, Path]:
 
 
 def _imports(name: str, path: Path, known) -> set[str]:
-    """Every module ``name`` imports (absolute names; a ``from X import y`` naming a submodule
-    counts as importing that submodule)."""
+    """Every module ``name`` imports (absolute names; ``from X import y`` imports X, and y too
+    when y is a submodule)."""
     is_package = path.name == "__init__.py"
     package = name if is_package else name.rpartition(".")[0]
     out = set()
@@ -44,9 +44,9 @@ def _imports(name: str, path: Path, known) -> set[str]:
             else:
                 target = node.module
             submodules = {f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in known}
-            # `from . import x` of a submodule imports x; its package is the importer's own parent.
-            if not (node.level and submodules):
-                out.add(target)
+            # `from . import x` imports x and runs its package: an edge to both (as
+            # ../shared/tools/import_circles.py counts it).
+            out.add(target)
             out.update(submodules)
     out.discard(name)
     return out

@@ -38,7 +38,7 @@ def test_text_report_and_the_default_file_name(tmp_path):
     run = ecam_cli("export", DRRD, "--to", "twincat-cnc", "--interp", "cubic", "--points", "90", cwd=tmp_path)
     assert run.returncode == 0, run.stderr
     assert "combination_drrd -> twincat-cnc: cubic, 90 points (limit 360)" in run.stdout
-    assert "reading 'neighbours across the wrap'" in run.stdout
+    assert "note: interpolation point table" in run.stdout and "TableFctType := HLI_POLYNOM_3 (2)" in run.stdout
     assert "wrote combination_drrd.twincat-cnc.txt" in run.stdout
     assert (tmp_path / "combination_drrd.twincat-cnc.txt").read_text().count("\n") > 90
 
@@ -66,8 +66,13 @@ def test_bad_input_is_one_line_with_status_2(args, message, tmp_path):
 
 def test_a_net_stroke_refusal_is_one_line(tmp_path):
     knife = tmp_path / "knife.toml"
-    knife.write_text('name = "knife"\nmaster_unit = "deg"\nslave_unit = "deg"\nmaster_period = 360.0\n'
-                     '[[segment]]\nlaw = "constant_velocity"\nspan = 360.0\nstroke = 360.0\n')
+    text = ('name = "knife"\nmaster_unit = "deg"\nslave_unit = "deg"\nmaster_period = 360.0\n{}'
+            '[[segment]]\nlaw = "constant_velocity"\nspan = 360.0\nstroke = 360.0\n')
+    knife.write_text(text.format(""))  # the step at the seam not declared: a gap, as ecam check says
+    run = ecam_cli("export", knife, "--to", "codesys", "--points", "5", cwd=tmp_path)
+    assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1
+    assert "position: jumps by -360 deg at the seam" in run.stderr and "net_stroke = 360.0" in run.stderr
+    knife.write_text(text.format("net_stroke = 360.0\n"))
     run = ecam_cli("export", knife, "--to", "technosoft", "--points", "129", "--master-counts", "16384", cwd=tmp_path)
     assert run.returncode == 2 and "net stroke: +360 deg per period should be 0 for technosoft" in run.stderr
     run = ecam_cli("export", knife, "--to", "codesys", "--points", "5", cwd=tmp_path)

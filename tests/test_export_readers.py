@@ -6,7 +6,8 @@ documentation says (with scipy where a textbook routine exists), and measures th
 analytic cam. The measurement must stay within the certificate's predicted bound and agree with
 the certificate's measured maximum (which also searches each interval's extremum, so it may only be
 slightly larger than a reader's dense sampling; on consumers that see whole master counts the two
-are the same numbers).
+are the same numbers). The net-stroke cam (rotary_knife) is read over two periods, the second one
+continued the way the vendor's documentation says a slave that does not return is run.
 """
 
 import json
@@ -22,12 +23,13 @@ from conftest import CAMS, ROOT
 
 EXPORTS = ROOT / "firmware_tables" / "exports"
 SEEDS = ("combination_drrd", "modified_sine")
+NET = "rotary_knife"  # +360 deg per period
 SAMPLES = 400  # per interval, for consumers that evaluate at any master position
 
 
 def certificates(stem):
     document = json.loads((EXPORTS / f"{stem}.certificates.json").read_text())
-    return {entry["file"].split("/")[-1]: entry for entry in document["exports"]}
+    return {entry["file"].split("/")[-1]: entry for entry in document["exports"] if "file" in entry}
 
 
 def cam(stem):
@@ -35,8 +37,11 @@ def cam(stem):
 
 
 def exact(profile, master):
-    """The cam at master positions in [0, P]; at P the value the period ends with."""
+    """The cam at master positions; a net-stroke cam unrolled (one net stroke per period passed), a
+    returning one at P the value the period ends with."""
     master = np.asarray(master, dtype=float)
+    if profile.net_stroke:
+        return profile(master)
     values = profile(np.minimum(master, profile.master_period))
     end = master >= profile.master_period
     return np.where(end, profile(profile.master_period, side="left"), values)
@@ -58,6 +63,11 @@ def agrees(measured_units, entry, exhaustive=False):
         assert measured_units >= entry["max_error_units"] * 0.98
     if "tolerance_units" in entry:
         assert entry["predicted_error_units"] <= entry["tolerance_units"]
+
+
+def wrapped(difference, modulo):
+    """A difference of positions on a modulo axis, in [-modulo/2, modulo/2)."""
+    return np.mod(np.asarray(difference) + modulo / 2, modulo) - modulo / 2
 
 
 # -- CODESYS: SMC_CAMXYVA points, one fifth-degree polynomial per interval through X, Y, V, A ------------
@@ -101,11 +111,45 @@ def test_codesys_xyva_read_back(stem):
     agrees(error, certificates(stem)[name])
 
 
-# -- ISG kernel table: header keywords, integers in 1e-4 units, wraps from the last pair to the first ----
+def codesys_relative(points, x):
+    """MC_CamIn.StartMode relative on a periodic cam: "The position of the slave after the end of the
+    previous cycle is added as a slave offset to the new evaluation of the cam" (CODESYS help,
+    Function Blocks: MC_CamTableSelect and MC_CamIn), the slave starting at 0."""
+    coefficients = xyva_polynomials(points)
+    period = points[-1, 0] - points[0, 0]
+    cycle, local = np.divmod(x - points[0, 0], period)
+    local = local + points[0, 0]
+    i = np.clip(np.searchsorted(points[:, 0], local, side="right") - 1, 0, len(points) - 2)
+    y = np.polynomial.polynomial.polyval(local - points[i, 0], coefficients[i].T, tensor=False)
+    return y + cycle * points[-1, 1]  # each cycle ends where the cam's last point is
+
+
+def test_codesys_net_stroke_runs_on_in_relative_mode_and_on_a_modulo_slave():
+    name = f"{NET}.codesys.st"
+    points = read_codesys((EXPORTS / name).read_text())
+    profile = cam(NET)
+    assert points[0, 1] == 0.0  # starts at dY = 0, so relative mode runs on without a jump
+    assert points[-1, 1] - points[0, 1] == profile.net_stroke
+    x = np.concatenate([dense(points[:, 0]), profile.master_period + dense(points[:, 0])[1:]])
+    relative = np.abs(codesys_relative(points, x) - exact(profile, x)).max()
+    entry = certificates(NET)[name]
+    agrees(relative, entry)
+    # StartMode absolute: each period evaluates the cam anew; on a slave whose modulo period is the
+    # net stroke that is the same position
+    coefficients = xyva_polynomials(points)
+    local = np.mod(x, profile.master_period)
+    i = np.clip(np.searchsorted(points[:, 0], local, side="right") - 1, 0, len(points) - 2)
+    absolute = np.polynomial.polynomial.polyval(local - points[i, 0], coefficients[i].T, tensor=False)
+    error = np.abs(wrapped(absolute - exact(profile, x), profile.net_stroke)).max()
+    assert error <= entry["predicted_error_units"] and math.isclose(error, relative, rel_tol=1e-6, abs_tol=1e-9)
+
+
+# -- ISG kernel: interpolation point table, one column, equidistant over the master's modulo range ---------
 def read_isg(text):
-    header, pairs, inside = {}, [], False
+    """Header keywords and the slave entries (1e-4 units) of a TABLE_ONE_COLUMN_SGN32 table."""
+    header, values, inside = {}, [], False
     for line in text.splitlines():
-        line = line.split("#", 1)[0].strip()
+        line = line.split("#", 1)[0].strip()  # the pages' examples comment after '#'
         if not line:
             continue
         if line == "Begintable":
@@ -113,78 +157,81 @@ def read_isg(text):
         elif line == "EndTable":
             inside = False
         elif inside:
-            master, slave = line.split()
-            pairs.append((int(master), int(slave)))
+            values.append(int(line))
         else:
             key, value = (part.strip() for part in line.split("=", 1))
             header[key.replace(" ", "").lower()] = value
-    assert int(header["lines"]) == len(pairs)
-    assert header["tabletype"] == "7"  # two-column integers
-    master = np.array([p[0] for p in pairs])
-    assert np.all(np.diff(master) >= 1000), "master positions at least 0.1 deg apart"
-    assert len(pairs) <= 360
-    return header, np.array(pairs, dtype=float)
+    assert header["tabletype"] == "2"  # TABLE_ONE_COLUMN_SGN32
+    assert " " not in header["tablename"]
+    assert int(header["lines"]) == len(values) <= 360
+    assert all(-(2**31) <= v < 2**31 for v in values)
+    return header, np.array(values, dtype=float)
 
 
-def isg_closed(pairs, period_units):
-    """The table over one modulo period: the last pair runs on to the first, one period later."""
-    master = np.append(pairs[:, 0], pairs[0, 0] + period_units)
-    slave = np.append(pairs[:, 1], pairs[0, 1])
+def isg_points(entries, modulo_range, endless_range):
+    """The entries with their master positions, the modulo range split into equal sections, and
+    one neighbour beyond each end taken from the neighbouring modulo ranges, "corrected by one
+    modulo range" of the slave when it rotates endlessly (0 when it does not)."""
+    n = len(entries)
+    master = np.arange(-1, n + 2) * (modulo_range / n)
+    slave = np.concatenate([[entries[-1] - endless_range], entries, entries[:2] + endless_range])
     return master, slave
 
 
-def bezier_isg(master, slave, x):
-    """The ISG cubic: a cubic Bezier per interval whose tangent at every point is parallel to the
-    chord through its two neighbours (wrapping), inner control points a third of the interval away.
-    Evaluated by de Casteljau, the curve parameter found by bisection on its master coordinate."""
-    n = len(master) - 1
-    period = master[-1] - master[0]
-    prev_m = np.concatenate([[master[n - 1] - period], master[:n - 1]])
-    prev_s = np.concatenate([[slave[n - 1]], slave[:n - 1]])
-    direction = np.stack([master[1:] - prev_m, slave[1:] - prev_s], axis=1)
-    direction = np.vstack([direction, direction[:1]])
-    out = np.empty_like(x)
-    for k, xk in enumerate(x):
-        i = min(max(np.searchsorted(master, xk, side="right") - 1, 0), n - 1)
-        h = master[i + 1] - master[i]
-        p0 = np.array([master[i], slave[i]])
-        p3 = np.array([master[i + 1], slave[i + 1]])
-        p1 = p0 + direction[i] * (h / 3) / direction[i][0]
-        p2 = p3 - direction[i + 1] * (h / 3) / direction[i + 1][0]
-        lo, hi = 0.0, 1.0
-        for _ in range(60):
-            t = (lo + hi) / 2
-            a, b, c = p0 + t * (p1 - p0), p1 + t * (p2 - p1), p2 + t * (p3 - p2)
-            d, e = a + t * (b - a), b + t * (c - b)
-            point = d + t * (e - d)
-            lo, hi = (t, hi) if point[0] < xk else (lo, t)
-        out[k] = point[1]
-    return out
+def isg_linear(master, slave, x):
+    return np.interp(x, master, slave)
+
+
+def isg_polynom_3(master, slave, x):
+    """HLI_POLYNOM_3: a cubic Bezier on each interval whose tangent at every entry is parallel to the
+    straight line through its two neighbouring entries, inner control points a third of the interval
+    away in master. Evaluated by de Casteljau, the curve parameter found by bisection on master."""
+    i = np.clip(np.searchsorted(master, x, side="right") - 1, 1, len(master) - 3)
+    h = master[i + 1] - master[i]
+    p0 = np.stack([master[i], slave[i]])
+    p3 = np.stack([master[i + 1], slave[i + 1]])
+    left = np.stack([master[i + 1] - master[i - 1], slave[i + 1] - slave[i - 1]])
+    right = np.stack([master[i + 2] - master[i], slave[i + 2] - slave[i]])
+    p1 = p0 + left * (h / 3) / left[0]
+    p2 = p3 - right * (h / 3) / right[0]
+    lo, hi = np.zeros_like(x), np.ones_like(x)
+    for _ in range(60):
+        t = (lo + hi) / 2
+        a, b, c = p0 + t * (p1 - p0), p1 + t * (p2 - p1), p2 + t * (p3 - p2)
+        d, e = a + t * (b - a), b + t * (c - b)
+        point = d + t * (e - d)
+        below = point[0] < x
+        lo, hi = np.where(below, t, lo), np.where(below, hi, t)
+    return point[1]
+
+
+ISG_FCT = {"linear": ("1", isg_linear), "cubic": ("2", isg_polynom_3)}
 
 
 @pytest.mark.parametrize("interp", ["linear", "cubic"])
-@pytest.mark.parametrize("stem", SEEDS)
+@pytest.mark.parametrize("stem", (*SEEDS, NET))
 def test_twincat_cnc_table_read_back(stem, interp):
     name = f"{stem}.twincat-cnc-{interp}.txt"
-    header, pairs = read_isg((EXPORTS / name).read_text())
+    header, entries = read_isg((EXPORTS / name).read_text())
     profile = cam(stem)
-    assert header["functiontype"] == {"linear": "1", "cubic": "2"}[interp]
-    master_per_unit = 1e4  # 1e-4 deg
-    slave_per_unit = {"in": 254000.0, "mm": 1e4}[profile.slave_unit]  # 1e-4 mm
-    master, slave = isg_closed(pairs, profile.master_period * master_per_unit)
-    x_units = dense(master) if interp == "linear" else dense(master)[::7]
-    if interp == "linear":
-        y_units = np.interp(x_units, master, slave)
-    else:
-        y_units = bezier_isg(master, slave, x_units)
-    error = np.abs(y_units / slave_per_unit - exact(profile, x_units / master_per_unit)).max()
+    functiontype, interpolate = ISG_FCT[interp]
+    assert header["functiontype"] == functiontype
     entry = certificates(stem)[name]
-    assert error <= entry["predicted_error_units"]
-    if interp == "linear":
-        agrees(error, entry)
-    else:  # the reading across the wrap; the certificate holds the worse of two readings
-        wrap = next(r for r in entry["readings"] if r["reading"] == "neighbours across the wrap")
-        assert error <= wrap["max_error_units"] * (1 + 1e-6) and error >= wrap["max_error_units"] * 0.9
+    assert any(f"TableFctType := {('HLI_LINEAR', 'HLI_POLYNOM_3')[interp == 'cubic']}" in n for n in entry["notes"])
+    per_unit = {"in": 254000.0, "mm": 1e4, "deg": 1e4}[profile.slave_unit]  # 1e-4 mm or 1e-4 deg
+    modulo_range = profile.master_period * 1e4  # the master axis, 1e-4 deg
+    assert modulo_range % len(entries) == 0 and modulo_range / len(entries) >= 1000  # 0.1 deg apart
+    endless = (profile.net_stroke or 0.0) * per_unit  # the slave's modulo range, HLI_CI_ENDLESS_POSITIVE
+    if endless:
+        assert any("HLI_CI_ENDLESS_POSITIVE" in n for n in entry["notes"])
+    master, slave = isg_points(entries, modulo_range, endless)
+    periods = 2 if endless else 1
+    x = np.concatenate([k * modulo_range + dense(master[1:-1]) for k in range(periods)])
+    local = np.mod(x, modulo_range)
+    local[(x > 0) & (local == 0)] = modulo_range  # the end of a period belongs to it
+    y = interpolate(master, slave, local) + np.floor_divide(x - local, modulo_range) * endless
+    error = np.abs(y / per_unit - exact(profile, x / 1e4)).max()
+    agrees(error, entry)
 
 
 # -- Kollmorgen KAS CSV: normalised to the maxima, cubic spline through the points ---------------------
@@ -253,7 +300,7 @@ def elmo_output(table, settings, aux, rounding):
     return np.sign(num) * (np.abs(num) // step)
 
 
-@pytest.mark.parametrize("stem", SEEDS)
+@pytest.mark.parametrize("stem", (*SEEDS, NET))
 def test_elmo_table_read_back(stem):
     name = f"{stem}.elmo.txt"
     table, settings = read_elmo((EXPORTS / name).read_text())
@@ -262,11 +309,18 @@ def test_elmo_table_read_back(stem):
     spec = profile.table
     period = spec["master_counts"]
     assert (settings[("EM", 2)] - settings[("EM", 5)]) * settings[("EM", 4)] == period
-    aux = np.arange(period, dtype=np.int64)
+    entry = certificates(stem)[name]
+    # "If the output of the ECAM table is out of the position sensor range, it is interpreted modulo
+    # the position sensor range": the export names the range (XM) that makes the net stroke no move
+    sensor = [int(m) for n in entry["notes"] for m in re.findall(r"\(XM\[1\], XM\[2\]\) to (\d+) counts", n)]
+    assert len(sensor) == (1 if profile.net_stroke else 0)
+    aux = np.arange((2 if sensor else 1) * period, dtype=np.int64)  # a net stroke: across the wrap too
     reference = exact(profile, aux * profile.master_period / period) * spec["slave_counts_per_unit"]
-    worst = max(np.abs(elmo_output(table, settings, aux, r) - reference).max()
-                for r in ("nearest", "floor", "toward zero"))
-    agrees(worst / spec["slave_counts_per_unit"], certificates(stem)[name], exhaustive=True)
+    worst = 0.0
+    for rounding in ("nearest", "floor", "toward zero"):
+        difference = elmo_output(table, settings, aux, rounding) - reference
+        worst = max(worst, np.abs(wrapped(difference, sensor[0]) if sensor else difference).max())
+    agrees(worst / spec["slave_counts_per_unit"], entry, exhaustive=True)
 
 
 # -- Technosoft: two integer columns, X from 0 in power-of-two steps up to 128, at most 8192 points -------
@@ -291,20 +345,37 @@ def test_technosoft_table_read_back(stem):
 
 # -- CSV: the interpolation named in the header ------------------------------------------------------
 @pytest.mark.parametrize("interp", ["linear", "cubic", "quintic"])
-@pytest.mark.parametrize("stem", SEEDS)
+@pytest.mark.parametrize("stem", (*SEEDS, NET))
 def test_csv_points_read_back(stem, interp):
     name = f"{stem}.csv-{interp}.csv"
     lines = (EXPORTS / name).read_text().splitlines()
     comments = [line for line in lines if line.startswith("#")]
     declared = next(line for line in comments if line.startswith("# interpolation:")).split()[2]
     assert declared == interp
+    fields = dict(item.split(": ") for line in comments if line.startswith("# master_unit:")
+                  for item in line[2:].split("; "))
+    period, net_stroke = float(fields["master_period"]), float(fields["net_stroke"])
     data = np.array([[float(v) for v in line.split(",")] for line in lines[len(comments) + 1:]])
     x = data[:, 0]
+    assert x[-1] - x[0] == period and data[-1, 1] - data[0, 1] == net_stroke
     if interp == "linear":
         def curve(points):
             return np.interp(points, x, data[:, 1])
     else:
         curve = BPoly.from_derivatives(x, data[:, 1:])
-    grid = dense(x)
-    error = np.abs(curve(grid) - exact(cam(stem), grid)).max()
+    # the header's rule for repeating the table: every period adds the net stroke
+    periods = 2 if net_stroke else 1
+    grid = np.concatenate([k * period + dense(x) for k in range(periods)])
+    cycle = np.minimum(np.floor_divide(grid - x[0], period), periods - 1)
+    error = np.abs(curve(grid - cycle * period) + cycle * net_stroke - exact(cam(stem), grid)).max()
     agrees(error, certificates(stem)[name])
+
+
+@pytest.mark.parametrize("fmt, reason", [("kollmorgen", "KAS"), ("technosoft", "EasyMotion Studio")])
+def test_formats_that_cannot_carry_a_net_stroke_record_the_refusal_and_write_no_file(fmt, reason):
+    document = json.loads((EXPORTS / f"{NET}.certificates.json").read_text())
+    refused = [entry for entry in document["exports"] if entry["format"] == fmt]
+    assert len(refused) == 1 and "file" not in refused[0]
+    assert refused[0]["refused"].startswith(f"net stroke: +360 deg per period should be 0 for {fmt}: ")
+    assert reason in refused[0]["refused"] and "\n" not in refused[0]["refused"]
+    assert not list(EXPORTS.glob(f"{NET}.{fmt}*"))

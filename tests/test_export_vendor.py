@@ -18,6 +18,7 @@ COMBINATIONS = [("codesys", None), ("twincat-cnc", "linear"), ("twincat-cnc", "c
 
 KNIFE = {  # a rotary knife: the drum turns 360 deg per cut, 1.2 deg per master deg through the cut
     "name": "knife", "master_unit": "deg", "slave_unit": "deg", "master_period": 360.0, "periodic": True,
+    "net_stroke": 360.0,
     "table": {"master_counts": 36000, "slave_counts_per_unit": 1000.0},
     "segment": [
         {"law": "constant_velocity", "span": 60.0, "stroke": 72.0},
@@ -37,12 +38,18 @@ def test_the_old_exporters_are_still_importable_from_ecam_export():
     assert identifier("9 lives") == "cam_9_lives"
 
 
+# Equidistant straight lines on at most 360 entries cannot reach 5 counts on this cam (12.3 at best).
+IN_COUNTS = {("twincat-cnc", "linear"): 15}
+
+
 @pytest.mark.parametrize("fmt, interp", COMBINATIONS)
-@pytest.mark.parametrize("tolerance", ["5 counts", 4e-4])
-def test_tolerance_is_met_and_the_bound_holds(drrd, fmt, interp, tolerance):
+@pytest.mark.parametrize("in_counts", [True, False])
+def test_tolerance_is_met_and_the_bound_holds(drrd, fmt, interp, in_counts):
+    counts = IN_COUNTS.get((fmt, interp), 5)
+    tolerance = f"{counts} counts" if in_counts else 4e-4
     result = export_cam(drrd, fmt, tolerance=tolerance, interp=interp)
     c = result.certificate
-    limit_units = 5 / 100000 if isinstance(tolerance, str) else tolerance
+    limit_units = counts / 100000 if in_counts else tolerance
     assert c.predicted_error_units <= limit_units
     assert c.max_error_units <= c.predicted_error_units
     assert math.isclose(c.max_error_counts, c.max_error_units * 100000)
@@ -50,30 +57,45 @@ def test_tolerance_is_met_and_the_bound_holds(drrd, fmt, interp, tolerance):
     assert 0 <= c.max_error_at_master <= drrd.master_period
 
 
-@pytest.mark.parametrize("fmt, interp", [("codesys", None), ("csv", "linear"), ("csv", "cubic"),
-                                         ("csv", "quintic")])
-def test_free_placement_uses_the_fewest_points(msine, fmt, interp):
-    """With one point fewer, placed by the error, the bound misses the tolerance (the greedy
-    placement is optimal for a bound that grows with the interval)."""
-    tolerance = 5e-3
-    best = export_cam(msine, fmt, tolerance=tolerance, interp=interp)
-    fewer = export_cam(msine, fmt, points=best.points - 1, interp=interp)
-    assert fewer.points == best.points - 1
-    assert fewer.certificate.predicted_error_units > tolerance
+def next_smaller(fmt, result, profile):
+    """The largest point count below ``result.points`` that the format allows for this cam, worked
+    out from the vendors' rules (None when there is none)."""
+    points = result.points
+    if fmt in ("codesys", "csv", "kollmorgen"):  # any count (Kollmorgen: at least 4 spline segments)
+        return points - 1 if points - 1 >= (5 if fmt == "kollmorgen" else 2) else None
+    if fmt == "twincat-cnc":  # equal whole steps of 1e-4 deg, at least 0.1 deg apart
+        grid = round(profile.master_period * 1e4)
+        smaller = [n for n in range(2, points) if grid % n == 0 and grid // n >= 1000]
+        return smaller[-1] if smaller else None
+    master_counts = profile.table["master_counts"]
+    if fmt == "elmo":  # EM[4] divides the master period in counts
+        smaller = [d for d in range(1, points - 1) if master_counts % d == 0]
+        return smaller[-1] + 1 if smaller else None
+    step = master_counts // (points - 1)  # technosoft: the next power-of-two step up to 128
+    return master_counts // (2 * step) + 1 if 2 * step <= 128 and master_counts % (2 * step) == 0 else None
 
 
-@pytest.mark.parametrize("fmt, interp", [("elmo", None), ("technosoft", None), ("twincat-cnc", "cubic")])
-def test_equidistant_formats_use_the_fewest_points(drrd, fmt, interp):
-    """The next smaller point count the format allows misses the tolerance."""
-    tolerance = 1.75e-4
-    best = export_cam(drrd, fmt, tolerance=tolerance, interp=interp)
-    if fmt == "elmo":  # the next smaller divisor of the master period (36864 counts)
-        smaller = [d for d in range(1, best.points - 1) if 36864 % d == 0][-1] + 1
-    elif fmt == "technosoft":  # twice the master step
-        smaller = (best.points - 1) // 2 + 1
-    else:  # the next smaller divisor of 360 deg in 1e-4 deg
-        smaller = [n for n in range(4, best.points) if 3600000 % n == 0][-1]
-    other = export_cam(drrd, fmt, points=smaller, interp=interp)
+FEWEST = [(stem, fmt, interp) for stem in ("combination_drrd", "modified_sine", "rotary_knife")
+          for fmt, interp in COMBINATIONS
+          if not (stem == "rotary_knife" and fmt in ("kollmorgen", "technosoft"))]
+
+
+@pytest.mark.parametrize("stem, fmt, interp", FEWEST)
+def test_one_point_fewer_misses_the_tolerance(stem, fmt, interp):
+    """The fewest points within the vendor's rules: the next smaller count the format allows (placed
+    by the error where placement is free) has a predicted bound above the tolerance. The greedy
+    placement is optimal for a bound that grows with the interval, the equidistant formats try every
+    allowed count in turn, and the spline's search ends on a count whose predecessor failed."""
+    profile = ecam.load_cam(ecam.camfile.CAMS_DIR / f"{stem}.toml")
+    low, high = profile.slave_range
+    # Technosoft's coarsest step (128 counts) already meets 3e-4 of the stroke on both cams
+    tolerance = 2 / profile.table["slave_counts_per_unit"] if fmt == "technosoft" else 3e-4 * (high - low)
+    best = export_cam(profile, fmt, tolerance=tolerance, interp=interp)
+    assert best.certificate.predicted_error_units <= tolerance
+    smaller = next_smaller(fmt, best, profile)
+    assert smaller is not None, (fmt, best.points)
+    other = export_cam(profile, fmt, points=smaller, interp=interp)
+    assert other.points == smaller
     assert other.certificate.predicted_error_units > tolerance
 
 
@@ -131,6 +153,7 @@ def test_an_unreachable_tolerance_is_one_line_with_the_best_error_and_the_limit(
     ({"format": "kollmorgen", "points": 4}, "points: 4 should be an integer in 5..1000"),
     ({"format": "csv", "points": 10, "tolerance": 1e-3}, "points: 10 should be given without a tolerance"),
     ({"format": "csv", "tolerance": -1.0}, "tolerance: -1 should be a number > 0"),
+    ({"format": "csv", "tolerance": "3 mm"}, "tolerance: '3 mm' should be in the cam's slave unit (in) or in counts"),
     ({"format": "elmo", "points": 100}, "points: 100 should be one more than a number of equal whole master"),
     ({"format": "csv", "points": 10, "slave_counts_per_unit": 0.0}, "slave_counts_per_unit: 0 should be"),
 ])
@@ -141,6 +164,12 @@ def test_bad_arguments_name_the_field_the_value_and_the_expectation(drrd, kwargs
         export_cam(drrd, fmt, **kwargs)
     assert str(info.value).startswith(message), str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_tolerance_in_the_cams_slave_unit_is_the_plain_number(drrd):
+    in_unit = export_cam(drrd, "codesys", tolerance="2e-4 in")
+    assert in_unit.certificate.tolerance_units == 2e-4
+    assert in_unit.content == export_cam(drrd, "codesys", tolerance=2e-4).content
 
 
 def test_without_points_or_tolerance_the_cam_files_tolerance_applies(msine):
@@ -171,8 +200,9 @@ def test_a_net_stroke_cam_exports_where_the_format_can_carry_it(fmt, interp):
     if fmt == "codesys":
         rows = [line for line in result.content.splitlines() if "(dX := " in line]
         assert "(dX := 0.0, dY := 0.0," in rows[0] and "(dX := 360.0, dY := 360.0," in rows[-1]
-    if fmt == "twincat-cnc":
-        assert any("EndlessPositive" in note for note in result.notes)
+    if fmt == "twincat-cnc":  # the kernel corrects the wrap by one slave modulo range in that direction
+        assert any("modulo range must be 360 deg" in note and "HLI_CI_ENDLESS_POSITIVE (16#20)" in note
+                   for note in result.notes)
     if fmt == "elmo":
         lines = result.content.splitlines()
         entries = [int(line.split("=")[1].rstrip(";")) for line in lines if line.startswith("ET[")]
@@ -218,9 +248,9 @@ def test_every_format_documents_its_point_and_its_rule():
 
 
 def test_a_drum_turning_backwards_runs_endless_negative():
-    backwards = dict(KNIFE, segment=[dict(s, stroke=-s["stroke"]) for s in KNIFE["segment"]])
+    backwards = dict(KNIFE, net_stroke=-360.0, segment=[dict(s, stroke=-s["stroke"]) for s in KNIFE["segment"]])
     result = export_cam(parse_cam(backwards), "twincat-cnc", tolerance=0.01)
-    assert any("net stroke -360 deg" in note and "EndlessNegative" in note for note in result.notes)
+    assert any("net stroke -360 deg" in note and "HLI_CI_ENDLESS_NEGATIVE (16#40)" in note for note in result.notes)
     assert result.certificate.max_error_units <= result.certificate.predicted_error_units <= 0.01
 
 
@@ -240,3 +270,65 @@ def test_tiny_segments_next_to_huge_ones():
     for fmt, interp in [("codesys", None), ("elmo", None), ("twincat-cnc", "linear")]:
         with pytest.raises(TableFormatError, match="^tolerance: 0.002 mm .* should be at least .* within its limit"):
             export_cam(rise, fmt, tolerance="2 counts", interp=interp)
+
+
+def test_an_undeclared_jump_at_the_seam_is_refused_like_ecam_check_does():
+    """A periodic cam whose slave ends 360 deg above its start without saying so has a gap at the
+    seam (issue 9): no controller table is exported for it, in any format."""
+    undeclared = {key: value for key, value in KNIFE.items() if key != "net_stroke"}
+    for fmt, interp in COMBINATIONS:
+        with pytest.raises(InputError) as info:
+            export_cam(parse_cam(undeclared), fmt, tolerance=0.01, interp=interp)
+        message = str(info.value)
+        assert message.startswith("position: jumps by -360 deg at the seam (master 360 -> 0)"), message
+        assert "net_stroke = 360.0" in message and "\n" not in message
+
+
+def test_codesys_names_both_ways_to_run_a_net_stroke_and_when_relative_mode_jumps():
+    """CODESYS MC_CamIn.StartMode: absolute needs a modulo slave; relative adds the previous end
+    position, which is seamless only for a cam that starts at dY = 0."""
+    notes = " ".join(export_cam(parse_cam(KNIFE), "codesys", tolerance=0.01).notes)
+    assert "StartMode absolute with a modulo slave axis whose period divides 360 deg" in notes
+    assert "MC_CamIn.StartMode := relative" in notes and "would jump" not in notes
+    shifted = dict(KNIFE, start=10.0)
+    notes = " ".join(export_cam(parse_cam(shifted), "codesys", tolerance=0.01).notes)
+    assert "this cam starts at dY = 10 deg, so relative mode would jump by that much every period" in notes
+
+
+def fewest_by_dynamic_programming(bound, grid, forced, budget):
+    """The fewest knots on 0..grid (forced ones kept) whose every interval's bound is within budget,
+    by trying every interval: the reference the greedy placement must match."""
+    best = [math.inf] * (grid + 1)
+    best[0] = 1
+    for j in range(1, grid + 1):
+        start = max(f for f in forced if f < j)  # no interval may step over a forced knot
+        for i in range(start, j):
+            if best[i] + 1 < best[j] and bound(i, j) <= budget:
+                best[j] = best[i] + 1
+    return best[grid]
+
+
+@pytest.mark.parametrize("stem, degree, share", [("modified_sine", 1, 1e-3), ("combination_drrd", 3, 3e-5),
+                                                 ("rotary_knife", 5, 1e-5)])
+def test_the_greedy_placement_is_the_fewest_any_placement_reaches(stem, degree, share):
+    """On a coarse grid every placement can be tried (dynamic programming over all intervals): the
+    greedy search of the free-placement formats finds that minimum under the same bound."""
+    from ecam.export.certify import Cam, Hermite, greedy_knots, interval_bounds, knot_data
+
+    grid = 120
+    cam = Cam(ecam.load_cam(ecam.camfile.CAMS_DIR / f"{stem}.toml"), master_counts=grid)
+    r = (degree + 1) // 2
+    low, high = cam.profile.slave_range
+
+    data = [knot_data(cam, np.array([k * cam.period / grid]), r, sides=True) for k in range(grid + 1)]
+
+    def bound(i, j):
+        (left, right, _), (stored, _, end) = data[i], data[j]
+        hermite = Hermite(np.array([i, j]) * (cam.period / grid), degree, left, stored)
+        return float(interval_bounds(cam, hermite, inside=(right, end))[0])
+
+    forced = sorted({int(round(x / cam.period * grid)) for x in cam.breaks(degree)})
+    budget = share * (high - low)
+    greedy = greedy_knots(bound, grid, forced, budget)
+    assert greedy is not None
+    assert len(greedy) == fewest_by_dynamic_programming(bound, grid, forced, budget)

@@ -63,7 +63,7 @@ DENSE_PER_INTERVAL = 64                # measured samples per interval, before t
 EVERY_COUNT_LIMIT = 2**22              # integer consumers: every master count up to this period
 # Written in the files that take comments, with a content CRC-32 instead of a date: raise it when
 # the same cam and settings would give different points.
-EXPORT_VERSION = 1
+EXPORT_VERSION = 2
 
 
 # -- the cam over one period -------------------------------------------------------------------------
@@ -93,6 +93,7 @@ class Cam:
             if 0.0 < d.master < self.period
         )
         self._envelopes: dict = {}
+        self._check_seam()
 
     @property
     def name(self) -> str:
@@ -104,18 +105,25 @@ class Cam:
 
     @functools.cached_property
     def net_stroke(self) -> float:
-        """Slave advance per master period (0 for a cam that returns, or a non-periodic one).
+        """Slave advance per master period, as the cam file declares it (0 when it declares none)."""
+        return float(self.profile.net_stroke or 0.0)
 
-        Declared by the cam where the profile carries ``net_stroke``; otherwise measured as the
-        position step at the seam."""
-        declared = getattr(self.profile, "net_stroke", None)
-        if declared is not None:
-            return float(declared)
+    def _check_seam(self) -> None:
+        """A periodic cam must end where it starts, or one net stroke on (the profile has checked that
+        a declared net stroke is what the segments add up to). An undeclared step at the seam is the
+        accidental gap ``ecam check`` reports: no controller table is exported for it."""
         if not self.periodic:
-            return 0.0
-        step = float(self(np.array([self.period]))[0] - self(np.array([0.0]))[0])
+            return
+        end = float(self.profile(self.period, 0, side="left"))
+        start = float(self.profile(0.0, 0, side="right"))
+        step = end - start - self.net_stroke
         low, high = self.profile.slave_range
-        return 0.0 if abs(step) <= 1e-12 * max(1.0, abs(low), abs(high)) else step
+        if abs(step) > 1e-9 * max(1.0, abs(low), abs(high), abs(self.net_stroke)):
+            unit = self.profile.slave_unit
+            raise InputError(
+                f"position: jumps by {-step:+.6g} {unit} at the seam (master {self.period:g} -> 0) and should "
+                f"continue; if the slave is meant to advance by {end - start:+.6g} {unit} every period, say so "
+                f"in the cam file: net_stroke = {end - start!r}")
 
     @functools.cached_property
     def stroke(self) -> float:
@@ -776,8 +784,9 @@ class VendorExport:
 
 
 def tolerance_units(tolerance, cam: Cam) -> float:
-    """A tolerance (slave units, or a string such as '2 counts') in slave user units."""
-    value, in_counts = parse_tolerance(tolerance)
+    """A tolerance (slave units, or a string such as '2 counts' or '0.01 mm' in the cam's slave unit)
+    in slave user units."""
+    value, in_counts = parse_tolerance(tolerance, slave_unit=cam.profile.slave_unit)
     return value / cam.scale if in_counts else value
 
 

@@ -19,9 +19,20 @@ Y, V and A: a quintic Hermite polynomial, which is what ecam certifies. The docu
 nothing of it open. The point limit is that of ``nElements`` (INT: 32767); ``SMC_ReadCAM``, which
 reads cams from files, takes 128 points unless told otherwise -- this export is source code instead.
 
-A cam whose slave ends a net stroke above its start needs a modulo slave axis: "Dialog: Properties
-- Cam", Slave period: "the slave position at the start and end of the master period may deviate
-by one integer multiple of this value".
+The global variable list has the shape of the one CODESYS generates for a cam itself (CODESYS
+online help, "Command: Display Generated Code": ``Cam_A: ARRAY[0..3] OF SMC_CAMXYVA := [(dX := 0,
+dY := 0, dV := 0, dA := 0), ...]; Cam: MC_CAM_REF := (nElements := 4, byType := 3, xStart := 0,
+xEnd := 360, nTappets := 0, strCAMName := 'Cam', pce := ADR(Cam_A), ...)``).
+
+A cam whose slave ends a net stroke above its start: CODESYS online help, "Function Blocks:
+MC_CamTableSelect and MC_CamIn", ``MC_CamIn.StartMode``: "absolute: When starting a new cycle, the
+cam is evaluated independent of the current slave position", so the slave jumps back unless it is a
+modulo axis whose period divides the net stroke ("Dialog: Properties - Cam", Slave period: "the
+slave position at the start and end of the master period may deviate by one integer multiple of
+this value"); "relative: ... The position of the slave after the end of the previous cycle is added
+as a slave offset to the new evaluation of the cam", with a jump "if the slave position at the
+master start position is not 0" -- so relative mode carries a net stroke on any slave axis when the
+cam starts at dY = 0. Both settings are named in the export's notes; the table itself is the same.
 """
 
 from __future__ import annotations
@@ -65,7 +76,7 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     body += [
         "    ];",
         f"    {ident} : MC_CAM_REF := (byType := 3, xStart := {positional(0.0)}, xEnd := {positional(cam.period)}, "
-        f"nElements := {len(text_rows)}, pce := ADR({ident}_xyva), strCAMName := '{ident}');",
+        f"nElements := {len(text_rows)}, nTappets := 0, pce := ADR({ident}_xyva), strCAMName := '{ident}');",
         "END_VAR",
         "",
     ]
@@ -83,12 +94,16 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     notes = [f"select the table with MC_CamTableSelect(CamTable := {ident}, "
              f"Periodic := {'TRUE' if cam.periodic else 'FALSE'})"]
     if cam.net_stroke:
-        notes.append(
-            f"net stroke {cam.net_stroke:+.6g} {unit} per period: make the slave a modulo axis whose period "
-            f"divides {abs(cam.net_stroke):.6g} {unit} (cam properties, Slave period: start and end may "
-            f"deviate by an integer multiple of it)")
-        header.append(f"   Net stroke {cam.net_stroke:+.6g} {unit} per period: the slave must be a modulo axis "
-                      f"whose period divides it.")
+        start = float(data[0, 0])
+        relative = ("MC_CamIn.StartMode := relative (MC_CamTableSelect.SlaveAbsolute := FALSE): each period adds "
+                    "the slave position reached at the end of the previous one"
+                    + ("" if start == 0.0 else f" -- this cam starts at dY = {start:.6g} {unit}, so relative mode "
+                       f"would jump by that much every period; use the modulo axis"))
+        notes.append(f"net stroke {cam.net_stroke:+.6g} {unit} per period: either StartMode absolute with a modulo "
+                     f"slave axis whose period divides {abs(cam.net_stroke):.6g} {unit}, or " + relative)
+        header.append(f"   Net stroke {cam.net_stroke:+.6g} {unit} per period (the last point is the first one period "
+                      f"on): StartMode absolute on a modulo slave whose period divides it"
+                      + (", or StartMode relative (the cam starts at dY = 0)." if start == 0.0 else "."))
     header += [
         f"   Certified by ecam under that interpolation: max error {c.max_error_units:.6g} {unit} "
         f"({c.max_error_counts:.6g} counts at {cam.scale:g} counts/{unit}) at master {c.max_error_at_master:.6g} "

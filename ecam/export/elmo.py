@@ -1,18 +1,22 @@
 """Elmo (SimplIQ / Harmonica drives): the electronic cam table ET[] and the EM[] settings it needs,
 as interpreter commands.
 
-From the SimplIQ Software Manual (MAN-SIMSW), "ECAM" (the Command Reference says the same):
+From the SimplIQ Software Manual (MAN-SIMSW Ver. 1.4, section 11.2.2 "ECAM", page 11-33, table
+11-10 "ECAM-related Commands") and the HARmonica Software Manual (HARSFEN0602, section 12.2.1):
 
-* ``EM[2]``: "The last valid index of the ECAM table. The maximum for EM[2] is 1024." ``EM[5]``:
-  "First valid index of ECAM table. The EM[2] setting goes into effect at next setting of EM[5]".
+* ``EM[2]``: "The last valid index of the ECAM table. The maximum for EM[2] is 1024." (HARmonica).
+  ``EM[5]``: "First valid index of ECAM table. The EM[2] setting goes into effect at next setting
+  of EM[5] or next MO=1" (SimplIQ), so EM[5] is written after EM[2].
 * ``EM[3]``: starting position; ``EM[4]``: "Table difference": the master step between entries.
   ``EM[7]``: "Last interval shortening. EM[7] allows the ECAM table length (ECAM cycle in the
   EM[1]=2 cyclical mode) not to be an integer multiple of EM[4]".
 * "The input to the ECAM table (IET) is FR[3] * (auxiliary encoder - EM[3]). The ECAM table
   defines the external position reference for IET values between 0 and IETmax = (EM[2] - EM[5]) *
   EM[4] - EM[7]."
-* "Linear ECAM is selected by EM[1]=1 ... If 0 < IET < IETmax, the external position command will
-  be derived by linear interpolation of the ECAM table"; ``EM[1]=2`` is the cyclical mode.
+* 11.2.2.1: "Linear ECAM is selected by EM[1]=1 ... If 0 < IET < IETmax, the external position
+  command will be derived by linear interpolation of the ECAM table"; ``EM[1]=2`` is the cyclical
+  mode (the EM[7] entry above: "ECAM cycle in the EM[1]=2 cyclical mode"), in which the table repeats
+  every IETmax.
 * "If the output of the ECAM table is out of the position sensor range, it is interpreted modulo the
   position sensor range."
 

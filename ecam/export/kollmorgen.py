@@ -14,15 +14,19 @@ From the KAS documentation (webhelp.kollmorgen.com/kas, "Import Cam Profile"):
   to the file's maximum and the offset to the shift ecam applies, it is the cam itself. ecam writes
   the slave shifted to start its range at 0 (so that "maximum" cannot be read as the largest
   magnitude of a negative value) and reports the scale and offsets to enter.
-* "Cam Profile Segment Overview": the spline segment type interpolates with cubic polynomials,
-  continuous in velocity and acceleration; "Cam Profile Editor's Cam Table": for a cyclic profile
-  "the first and last element must have the same Vel and Accel values".
+* "CAM Profile Segments" (webhelp.kollmorgen.com/kas, Cam-Profile/CAM-Profile-Segments.htm): the
+  spline segment type interpolates with a "3rd order polynomial: f(x) = Ax3 + Bx2 + Cx + D",
+  continuous in velocity and acceleration, and "only positions are specified"; "Cam Profile Editor's
+  Cam Table": for a cyclic profile "the first and last element must have the same Vel and Accel
+  values".
 
 Not documented: the spline's end conditions. ecam certifies the worst of the plausible readings:
 for a cyclic profile the periodic spline (what "same Vel and Accel" at both ends asks for), the
 natural spline (zero acceleration at both ends) and the not-a-knot spline; for a non-cyclic one the
 natural and the not-a-knot spline. The normalisation scales master and slave, which changes none
-of these splines. The point limit, 1000, is AKD BASIC's (the stored KAS pages do not state one).
+of these splines. The point limit, 1000, is AKD BASIC's ("Overview of Camming in AKD-Basic",
+kdn.kollmorgen.com: "You can define up to 1000 data points for the cam profile"); the KAS pages
+state none.
 
 A net stroke cannot be expressed: nothing in these pages says how a cyclic KAS profile whose end
 position differs from its start continues, so ecam refuses rather than guess.

@@ -21,6 +21,20 @@ A cam from Python, segment by segment (spans and strokes; positions add up from 
 Every bad value raises one line, ``<field>: <value> should be <expected>``, as an
 :class:`InputError` (a ``ValueError``); a cam file's errors are :class:`CamFileError` and name
 the file and its field.
+
+Data exported beside the functions and classes:
+
+* ``LAWS``: the rise laws by name (name -> :class:`Law`); ``DWELL``: the dwell law (s = 0), which
+  :func:`law` and cam files accept as ``"dwell"``; ``LAW_NAMES``: every name :func:`law`
+  accepts, sorted (the rise laws and ``"dwell"``).
+* ``KINDS``: the table interpolation kinds and their polynomial degree (linear 1, cubic 3,
+  quintic 5); ``INTERPOLATIONS``: every ``interp`` a :class:`TableSpec` accepts (the kinds and
+  ``"auto"``).
+
+Submodules: :mod:`ecam.design` (combination curves, modified-sine and dwell-rise-return-dwell
+cams), :mod:`ecam.mechanics` (:class:`Mechanics`, reflected inertia, the two-mass mode, the
+coupling checks), :mod:`ecam.export` (C header, blob, CSV, JSON, vendor tables; imported on
+its own), :mod:`ecam.plot` (the motion diagram; the only core module that imports matplotlib).
 """
 
 from . import design, mechanics
@@ -29,6 +43,7 @@ from .certificate import Certificate, Measurement
 from .compile import compile_table
 from .errors import CamFileError, EcamError, InputError, SimulationError, TableFormatError
 from .laws import DWELL, LAW_NAMES, LAWS, Law, law, polynomial_from_boundary
+from .mechanics import Mechanics
 from .profile import CamProfile, CheckReport, Discontinuity, Segment
 from .table import INTERPOLATIONS, KINDS, CamTable, TableFormat
 from .table_spec import TableSpec
@@ -37,6 +52,6 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CamFileError", "CamProfile", "CamTable", "Certificate", "CheckReport", "DWELL", "Discontinuity", "EcamError", "InputError",
-    "INTERPOLATIONS", "KINDS", "LAWS", "LAW_NAMES", "Law", "Measurement", "Segment", "SimulationError", "TableFormat", "TableFormatError", "TableSpec",
+    "INTERPOLATIONS", "KINDS", "LAWS", "LAW_NAMES", "Law", "Measurement", "Mechanics", "Segment", "SimulationError", "TableFormat", "TableFormatError", "TableSpec",
     "compile_table", "design", "law", "load_cam", "mechanics", "parse_cam", "polynomial_from_boundary",
 ]

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .validate import fail, number, positive, show
+from .laws import law as _law
+from .validate import fail, number, plain, positive, show
 
 __all__ = [
     "Mechanics",
@@ -61,6 +62,18 @@ def _efficiency(field: str, value) -> float:
     return positive(field, value, maximum=1.0)
 
 
+def _series(field: str, values) -> np.ndarray:
+    """A recorded series as a 1-D float array of at least one sample. NaN samples are kept (a
+    check reports them as its value rather than refusing the run that recorded them)."""
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise fail(field, values, "a 1-D series of numbers") from None
+    if array.ndim != 1 or array.size == 0:
+        raise fail(field, values, "a 1-D series of at least one number")
+    return array
+
+
 # The formulas, unchecked: the public functions check their arguments and call these; Mechanics,
 # whose fields were checked when it was built, calls them directly.
 
@@ -70,6 +83,10 @@ def _reflected(load_side: float, ratio: float, efficiency: float) -> float:
 
 def _two_mass_omega(stiffness: float, inertia_1: float, inertia_2: float) -> float:
     return math.sqrt(stiffness * (inertia_1 + inertia_2) / (inertia_1 * inertia_2))
+
+
+def _wind_up(torque: float, stiffness: float) -> float:
+    return float(torque) / stiffness
 
 
 # ------------------------------------------------------------------------------------ formulas
@@ -111,21 +128,33 @@ def two_mass_frequency(stiffness: float, inertia_1: float, inertia_2: float) -> 
 
 def wind_up_angle(torque: float, stiffness: float) -> float:
     """Twist of a coupling carrying ``torque``: T / k, in rad."""
-    return float(torque) / positive("stiffness", stiffness)
+    return _wind_up(number("torque", plain(torque)), positive("stiffness", stiffness))
 
 
 def torsional_harmonic(mode_hz: float, cycle_hz: float) -> float | None:
     """The torsional mode as a multiple of the cam cycle frequency: the harmonic of the cam
-    that would excite it. None when there is no mode (``mode_hz`` infinite: rigid)."""
-    return mode_hz / cycle_hz if math.isfinite(mode_hz) else None
+    that would excite it. None when there is no mode (``mode_hz`` infinite: rigid).
+
+    Raises
+    ------
+    InputError
+        ``mode_hz`` negative or NaN, or ``cycle_hz`` not a finite number > 0.
+    """
+    cycle_hz = positive("cycle_hz", plain(cycle_hz))
+    if plain(mode_hz) == math.inf:
+        return None
+    return number("mode_hz", plain(mode_hz), minimum=0.0) / cycle_hz
 
 
 def residual_vibration(natural_hz: float, rise_time_s: float, law) -> float:
     """Amplitude of residual vibration of an undamped follower after a rest-to-rest rise, per
-    unit stroke: the magnitude of the Fourier transform of s''(u) at the natural frequency,
-    divided by (2 pi f T)^2 (single-degree-of-freedom response to the law's acceleration)."""
+    unit stroke: the magnitude of the Fourier transform of s''(u) at the natural frequency
+    w = 2 pi f T (radians per rise), divided by w (single-degree-of-freedom response to the
+    law's acceleration: e'' + omega^2 e = -y'' rings on with |int y'' e^(i omega t) dt| / omega).
+    ``law`` is a :class:`~ecam.laws.Law` or its name (as :func:`ecam.law` takes it)."""
     f = positive("natural_hz", natural_hz)
     period = positive("rise_time_s", rise_time_s)
+    law = _law(law)
     w = 2 * math.pi * f * period  # natural frequency in radians per rise
     u = np.linspace(0.0, 1.0, 20001)
     acc = law(u, 2)
@@ -296,9 +325,8 @@ class CouplingCheck:
         return self.limit is None or (self.value is not None and self.value <= self.limit)
 
 
-def _limit(limit) -> float | None:
-    # Limits come from a Mechanics or a scene, checked where they entered.
-    return None if limit is None else float(limit)
+def _limit(field: str, limit) -> float | None:
+    return None if limit is None else number(field, plain(limit), minimum=0.0)
 
 
 def peak_torque_check(torque, max_torque: float | None) -> CouplingCheck:
@@ -315,11 +343,16 @@ def peak_torque_check(torque, max_torque: float | None) -> CouplingCheck:
     -------
     CouplingCheck
         ``coupling_peak_torque`` [N m]; ``sample`` is the index of the peak.
+
+    Raises
+    ------
+    InputError
+        ``torque`` empty, not 1-D or not numbers.
     """
-    magnitude = np.abs(np.asarray(torque, dtype=float))
+    magnitude = np.abs(_series("torque", torque))
     worst = int(np.argmax(magnitude))
-    return CouplingCheck("coupling_peak_torque", float(magnitude[worst]), _limit(max_torque),
-                         "N m", sample=worst)
+    return CouplingCheck("coupling_peak_torque", float(magnitude[worst]),
+                         _limit("max_torque", max_torque), "N m", sample=worst)
 
 
 def rms_torque_check(torque, rated_torque: float | None) -> CouplingCheck:
@@ -336,9 +369,14 @@ def rms_torque_check(torque, rated_torque: float | None) -> CouplingCheck:
     -------
     CouplingCheck
         ``coupling_rms_torque`` [N m].
+
+    Raises
+    ------
+    InputError
+        ``torque`` empty, not 1-D or not numbers.
     """
-    rms = float(np.sqrt(np.mean(np.asarray(torque, dtype=float) ** 2)))
-    return CouplingCheck("coupling_rms_torque", rms, _limit(rated_torque), "N m",
+    rms = float(np.sqrt(np.mean(_series("torque", torque) ** 2)))
+    return CouplingCheck("coupling_rms_torque", rms, _limit("rated_torque", rated_torque), "N m",
                          "continuous load against the rated torque")
 
 
@@ -366,10 +404,11 @@ def wind_up_check(limit_deg: float | None, *, stiffness: float | None, peak_torq
     if stiffness is None:
         angle, how = 0.0, "no coupling"
     elif twist is not None:
-        angle, how = float(np.max(np.abs(np.asarray(twist, dtype=float)))), "coupling twist"
+        angle, how = float(np.max(np.abs(_series("twist", twist)))), "coupling twist"
     else:
-        angle, how = wind_up_angle(peak_torque, stiffness), "peak torque / stiffness"
-    return CouplingCheck("wind_up", math.degrees(angle), _limit(limit_deg), "deg", how)
+        angle = _wind_up(peak_torque, positive("stiffness", stiffness))
+        how = "peak torque / stiffness"
+    return CouplingCheck("wind_up", math.degrees(angle), _limit("limit_deg", limit_deg), "deg", how)
 
 
 def resonance_excitation_check(mode_hz: float, cycle_hz: float, spectrum,
@@ -401,7 +440,7 @@ def resonance_excitation_check(mode_hz: float, cycle_hz: float, spectrum,
     if harmonic is None:
         return CouplingCheck("resonance_excitation", None, None, "%",
                              "no coupling: no torsional mode")
-    amplitudes = np.asarray(spectrum)[1:]
+    amplitudes = _series("spectrum", spectrum)[1:]
     strongest = float(amplitudes.max()) if amplitudes.size else 0.0
     nearest = [n for n in {max(1, math.floor(harmonic)), max(1, math.ceil(harmonic))}
                if n <= amplitudes.size]
@@ -412,6 +451,6 @@ def resonance_excitation_check(mode_hz: float, cycle_hz: float, spectrum,
         what = f"harmonic {hit} carries {share:.3g} % of the strongest acceleration harmonic"
     else:
         what = f"above the {amplitudes.size} harmonics resolved"
-    return CouplingCheck("resonance_excitation", float(share), _limit(limit_percent), "%",
+    return CouplingCheck("resonance_excitation", float(share), _limit("limit_percent", limit_percent), "%",
                          f"torsional mode {mode_hz:.4g} Hz = {harmonic:.4g} x the "
                          f"{cycle_hz:.4g} Hz cam cycle; {what}")

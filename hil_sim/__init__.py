@@ -1,13 +1,27 @@
 """hil_sim: the software-in-the-loop rig -- a virtual CANopen CiA 402 servo with motor, gear,
 coupling and load, driven by a master-axis loop over python-can's virtual bus.
 
-``hil_sim.VirtualDrive``, ``hil_sim.run_scene`` and ``hil_sim.load_scene`` are imported on first
-use, so importing the package (as every ``ecam`` command does) does not load the CAN stack.
+The rig in four calls (see the README's "Python API")::
+
+    scene = hil_sim.load_scene(hil_sim.SCENES_DIR / "stiff_coupling.toml", cam=profile)
+    report = hil_sim.run_scene(scene)          # a Report: passed, checks, summary, series
+    print(report.to_text())
+    fastest = hil_sim.find_max_speed(scene)    # a dict: speed, unit, failing_speed, ...
+
+* ``SCENES_DIR``: the shipped example scenes (the demo's and the bench's);
+* :func:`load_scene` / :func:`parse_scene`: a scene file (or its parsed TOML) -> :class:`Scene`,
+  with an in-memory :class:`ecam.CamProfile` in place of the scene's cam file if given;
+* :func:`run_scene` -> :class:`Report` (its :class:`Check` items each carry a value and a limit);
+  :func:`find_max_speed`: the highest master speed at which every check passes;
+* :class:`VirtualDrive`: the CiA 402 drive alone, for a CANopen master of your own.
+
+Everything but ``SCENES_DIR`` is imported on first use, so ``import hil_sim`` (as every ``ecam``
+command does) loads no CAN stack; reading a scene or running one does.
 """
 
 from pathlib import Path
 
-# The shipped example scenes (the demo's and the bench's).
+#: The shipped example scenes (the demo's and the bench's).
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 
 _LAZY = {
@@ -15,6 +29,10 @@ _LAZY = {
     "run_scene": ("hil_sim.rig", "run_scene"),
     "find_max_speed": ("hil_sim.rig", "find_max_speed"),
     "load_scene": ("hil_sim.scene", "load_scene"),
+    "parse_scene": ("hil_sim.scene", "parse_scene"),
+    "Scene": ("hil_sim.scene", "Scene"),
+    "Report": ("hil_sim.report", "Report"),
+    "Check": ("hil_sim.report", "Check"),
 }
 __all__ = ["SCENES_DIR", *sorted(_LAZY)]
 

@@ -5,6 +5,8 @@ hidden in a function cannot bring a circle or a wrong-way dependency back.
 """
 
 import ast
+import importlib
+import inspect
 import subprocess
 import sys
 from pathlib import Path
@@ -128,3 +130,60 @@ def test_importing_ecam_loads_no_can_stack_no_plotting_no_rig():
             "('can', 'canopen', 'matplotlib', 'scipy', 'hil_sim') or m.startswith('ecam.app')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def _loaded_after(statement: str) -> list[str]:
+    """The heavy or wrong-layer modules a fresh interpreter has loaded after ``statement``."""
+    code = (f"import sys; {statement}; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('can', 'canopen', 'matplotlib', 'scipy', 'ruckig') or m.startswith('ecam.app')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return ast.literal_eval(out.stdout)
+
+
+def test_importing_hil_sim_loads_no_can_stack_until_a_rig_name_is_used():
+    # Every `ecam` command imports hil_sim (for SCENES_DIR); the CAN stack, ruckig and the
+    # plotting come in with the first rig name used.
+    assert _loaded_after("import hil_sim; hil_sim.SCENES_DIR") == []
+    loaded = _loaded_after("import hil_sim; hil_sim.run_scene")
+    assert {"can", "canopen"} <= set(loaded), "the check above would not see the CAN stack"
+
+
+def test_the_firmware_generator_loads_no_can_and_no_plotting():
+    loaded = _loaded_after("import ecam.app.firmware")
+    assert "ecam.app.firmware" in loaded, "the check would not see what the import loaded"
+    assert [m for m in loaded if not m.startswith("ecam.app")] == []
+
+
+# Public names: each package's __all__ names, read the way help() shows them.
+EXPORTING = ("ecam", "hil_sim", "ecam.export")
+
+
+def _exported(package: str):
+    module = importlib.import_module(package)
+    return [(name, getattr(module, name)) for name in module.__all__]
+
+
+def _own_docstring(obj) -> str:
+    doc = getattr(obj, "__doc__", None) or ""
+    if inspect.isclass(obj) and doc.startswith(f"{obj.__name__}("):
+        return ""  # the signature a dataclass writes when its class has no docstring
+    return doc.strip()
+
+
+@pytest.mark.parametrize("package", EXPORTING)
+def test_every_exported_function_class_and_module_has_a_docstring(package):
+    undocumented = [name for name, obj in _exported(package)
+                    if (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj))
+                    and not _own_docstring(obj)]
+    assert undocumented == []
+
+
+@pytest.mark.parametrize("package", ["ecam", "hil_sim"])
+def test_every_exported_constant_is_described_in_its_package_docstring(package):
+    # A tuple, dict or path cannot carry a docstring of its own: the package's says what it is.
+    doc = importlib.import_module(package).__doc__
+    undocumented = [name for name, obj in _exported(package)
+                    if not (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj))
+                    and f"``{name}``" not in doc]
+    assert undocumented == []

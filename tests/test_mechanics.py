@@ -84,6 +84,22 @@ def test_residual_vibration_smaller_for_smoother_laws():
     cyc = mechanics.residual_vibration(f, t, ecam.law("cycloidal"))
     har = mechanics.residual_vibration(f, t, ecam.law("harmonic"))
     assert cyc < har
+    # a law is taken by name wherever laws are accepted; a dwell leaves nothing to ring
+    assert mechanics.residual_vibration(f, t, "cycloidal") == cyc
+    assert mechanics.residual_vibration(f, t, "dwell") == 0.0
+
+
+@pytest.mark.parametrize("periods_per_rise", [0.5, 1.5, 4.5])
+def test_residual_vibration_of_the_cycloid_is_its_closed_form(periods_per_rise):
+    # Undamped follower, rise of time T, natural frequency f, lam = f T. The error e = x - y
+    # obeys e'' + w^2 e = -y''; after the rise it rings with amplitude |int y'' e^{iw t} dt| / w.
+    # For the cycloid, s'' = 2 pi sin(2 pi u), the integral is closed-form and, per unit
+    # stroke, the amplitude is |sin(pi lam)| / (pi lam |1 - lam^2|).
+    lam = periods_per_rise
+    exact = abs(math.sin(math.pi * lam)) / (math.pi * lam * abs(1.0 - lam**2))
+    rise_s = 0.1
+    assert mechanics.residual_vibration(lam / rise_s, rise_s, "cycloidal") == \
+        pytest.approx(exact, rel=1e-6)
 
 
 @pytest.mark.parametrize("call", [
@@ -91,18 +107,19 @@ def test_residual_vibration_smaller_for_smoother_laws():
     lambda: mechanics.reflected_inertia(1.0, 0.5, 1.5),
     lambda: mechanics.two_mass_frequency(0.0, 1, 1),
     lambda: mechanics.two_mass_frequency(float("nan"), 1, 1),
+    lambda: mechanics.wind_up_angle("12", 1e4),
+    lambda: mechanics.wind_up_angle(float("inf"), 1e4),
+    lambda: mechanics.torsional_harmonic(100.0, 0.0),
+    lambda: mechanics.torsional_harmonic(-1.0, 3.0),
+    lambda: mechanics.resonance_excitation_check(100.0, 0.0, [0.0, 1.0], 5.0),
+    lambda: mechanics.peak_torque_check([], 10.0),
+    lambda: mechanics.peak_torque_check([[1.0, 2.0]], 10.0),
+    lambda: mechanics.rms_torque_check(["a"], 10.0),
+    lambda: mechanics.rms_torque_check([1.0], -1.0),
+    lambda: mechanics.wind_up_check(0.05, stiffness=1e4, peak_torque=1.0, twist=[]),
+    lambda: mechanics.wind_up_check(0.05, stiffness=0.0, peak_torque=1.0),
+    lambda: mechanics.residual_vibration(40.0, 0.1, "cycloid"),
 ])
 def test_bad_values(call):
     with pytest.raises(InputError, match=r"^\w+: .+ should be "):
         call()
-
-
-def test_math_core_imports_no_can_and_no_plotting():
-    """The math core stays pure: CAN and plotting come in only at the edges."""
-    import subprocess
-    import sys
-
-    code = ("import sys, ecam, ecam.compile, ecam.export, ecam.app.firmware; "
-            "print(sorted(m for m in ('can', 'canopen', 'matplotlib', 'scipy') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "[]"

@@ -274,6 +274,34 @@ def test_every_bad_value_is_one_line_of_one_shape(build, message):
     assert isinstance(info.value, ValueError) and SHAPE.match(text)
 
 
+@pytest.mark.parametrize("build, message", [
+    (lambda: ecam.TableSpec(interp="spline", points=3),
+     "interp: 'spline' should be one of " + ", ".join(ecam.INTERPOLATIONS)),
+    (lambda: ecam.TableSpec(points=3, master_counts=1), "master_counts: 1 should be an integer in 2..2147483648"),
+    (lambda: ecam.TableSpec(points=1), "points: 1 should be an integer in 2..4194305"),
+    (lambda: ecam.TableSpec(points=3, slave_counts_per_unit=0), "slave_counts_per_unit: 0 should be >= 1e-06"),
+    (lambda: ecam.Mechanics(motor_inertia=-1.0), "motor_inertia: -1 should be > 0"),
+    (lambda: ecam.Mechanics(motor_inertia=1.0, gear_efficiency=2.0), "gear_efficiency: 2 should be <= 1"),
+    (lambda: ecam.Mechanics(motor_inertia=1.0, coupling_stiffness=1e4),
+     "load_inertia: 0 should be > 0 when coupling_stiffness is given"),
+    (lambda: ecam.mechanics.torsional_harmonic(100.0, 0.0), "cycle_hz: 0 should be > 0"),
+    (lambda: ecam.mechanics.peak_torque_check([], 10.0), "torque: [] should be a 1-D series of at least one number"),
+    (lambda: ecam.mechanics.residual_vibration(40.0, 0.1, "cycloid"),
+     "law: 'cycloid' should be one of " + ", ".join(ecam.LAW_NAMES)),
+])
+def test_tables_and_mechanics_speak_the_same_shape(build, message):
+    with pytest.raises(ecam.InputError) as info:
+        build()
+    assert str(info.value) == message and SHAPE.match(message)
+
+
+def test_the_rig_entry_points_speak_the_same_shape():
+    import hil_sim
+
+    with pytest.raises(ecam.InputError, match=r"^cam: 'x' should be an ecam\.CamProfile$"):
+        hil_sim.load_scene(hil_sim.SCENES_DIR / "stiff_coupling.toml", cam="x")
+
+
 def test_a_cam_file_error_names_the_file_and_its_own_field():
     data = {"master_period": 360.0, "segment": [{"law": "cycloidal", "span": 180.0, "to": 1e20},
                                                 {"law": "cycloidal", "span": 180.0, "to": 0.0}]}

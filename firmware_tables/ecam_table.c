@@ -1,5 +1,5 @@
 /*
- * ecam_table.c - C99 reference runtime for ecam cam tables, format version 1 (see FORMAT.md).
+ * ecam_table.c - C99 reference runtime for ecam cam tables, format versions 1 and 2 (FORMAT.md).
  *
  * Arithmetic convention: FORMAT.md specifies signed 64-bit intermediates. This file carries them
  * as uint64_t two's-complement bit patterns: addition, subtraction and multiplication are then
@@ -61,6 +61,11 @@
 #define ECAM_OFF_PAYLOAD_CRC 44u
 #define ECAM_OFF_RESERVED_B 48u
 #define ECAM_OFF_HEADER_CRC 60u
+
+/* ecam_table.periodic: what a master outside [0, M) does. */
+#define ECAM_CLAMP 0u    /* not periodic: hold the end position, slope 0 */
+#define ECAM_WRAP 1u     /* periodic: m mod M */
+#define ECAM_WRAP_NET 2u /* periodic with a net stroke: m mod M, plus step 7 */
 
 /* Field limits, from the rules column of FORMAT.md. */
 #define ECAM_MAX_TAU_BITS 30u
@@ -144,13 +149,15 @@ static uint64_t ecam_asr_any(uint64_t x, unsigned s)
     return ecam_asr(x, s);
 }
 
-/* 32-bit asr, the same idiom on int32. */
+#if ECAM_WORD_BITS != 64
+/* 32-bit asr, the same idiom on int32 (the 32-bit cores' final shift). */
 static ECAM_INLINE uint32_t ecam_asr32(uint32_t x, unsigned s)
 {
     const int32_t v = ecam_i32(x);
 
     return (uint32_t)(v >= 0 ? v >> s : ~(~v >> s));
 }
+#endif
 
 /* Full 64x64 -> 128-bit product from 32-bit limbs (the loader's checks). */
 static void ecam_mul_64x64(uint64_t a, uint64_t b, uint64_t *hi, uint64_t *lo)
@@ -167,11 +174,23 @@ static void ecam_mul_64x64(uint64_t a, uint64_t b, uint64_t *hi, uint64_t *lo)
     *hi = p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
 }
 
-#if !(ECAM_WORD_BITS == 64 && defined(__SIZEOF_INT128__) && !defined(ECAM_NO_INT128))
-/* High 64 bits of u * mu (the Barrett quotient), from 32-bit limbs: each partial sum is
- * a * b + c (+ d) with 32-bit a, b, c, d, which never exceeds 2^64 - 1. */
+#if ECAM_WORD_BITS == 64 && defined(__SIZEOF_INT128__) && !defined(ECAM_NO_INT128)
+/* A compiler extension (GCC, Clang): one multiply instruction for a Barrett quotient. */
+__extension__ typedef __int128 ecam_int128;
+__extension__ typedef unsigned __int128 ecam_uint128;
+#define ECAM_HAVE_INT128 1
+#else
+#define ECAM_HAVE_INT128 0
+#endif
+
+/* High 64 bits of u * mu (a Barrett quotient): one multiply with __int128, else from 32-bit
+ * limbs, where each partial sum is a * b + c (+ d) with 32-bit a, b, c, d, which never exceeds
+ * 2^64 - 1. The lookups' own helper: the loader's ecam_mul_64x64 is not shared with them. */
 static ECAM_INLINE uint64_t ecam_mulhi_64x64(uint64_t u, uint64_t mu)
 {
+#if ECAM_HAVE_INT128
+    return (uint64_t)(((ecam_uint128)u * mu) >> 64);
+#else
     const uint32_t u0 = (uint32_t)u;
     const uint32_t u1 = (uint32_t)(u >> 32);
     const uint32_t m0 = (uint32_t)mu;
@@ -181,8 +200,8 @@ static ECAM_INLINE uint64_t ecam_mulhi_64x64(uint64_t u, uint64_t mu)
     const uint64_t p10 = (uint64_t)u1 * m0 + (uint32_t)p01;
 
     return (uint64_t)u1 * m1 + (uint32_t)(p01 >> 32) + (uint32_t)(p10 >> 32);
-}
 #endif
+}
 
 /* ------------------------------------------------------------------------------------------ */
 /* CRC-32                                                                                     */
@@ -213,14 +232,6 @@ uint32_t ecam_crc32(const uint8_t *data, size_t len)
 /* Lookup kernels (FORMAT.md "Lookup")                                                        */
 /* ------------------------------------------------------------------------------------------ */
 
-#if ECAM_WORD_BITS == 64 && defined(__SIZEOF_INT128__) && !defined(ECAM_NO_INT128)
-/* A compiler extension (GCC, Clang): one multiply instruction for the wrap's Barrett quotient. */
-__extension__ typedef __int128 ecam_int128;
-#define ECAM_HAVE_INT128 1
-#else
-#define ECAM_HAVE_INT128 0
-#endif
-
 #if ECAM_HAVE_INT128
 /*
  * Step 1 for a periodic table and a master outside [0, M): m mod M (floor modulo) for every int64
@@ -236,11 +247,12 @@ static ECAM_INLINE uint32_t ecam_wrap(const ecam_table *t, int64_t m)
     const int64_t q = (int64_t)(product >= 0 ? product >> 64 : ~(~product >> 64));
     const int64_t r = ecam_i64((uint64_t)m - (uint64_t)q * t->master_counts);
 
+    /* r + M (r < 0) and r - M (r >= M) lie in [0, M): their low words are the sums mod 2^32 */
     if (r < 0) {
-        return (uint32_t)(r + (int64_t)t->master_counts);
+        return (uint32_t)r + t->master_counts;
     }
     if (r >= (int64_t)t->master_counts) {
-        return (uint32_t)(r - (int64_t)t->master_counts);
+        return (uint32_t)r - t->master_counts;
     }
     return (uint32_t)r;
 }
@@ -333,11 +345,11 @@ static ECAM_INLINE int32_t ecam_linear_at(const ecam_table *t, uint32_t i, uint3
     const uint8_t *p = &t->position[(size_t)i * 4u];
     const int64_t y0 = ecam_i32(ecam_get_u32(p));
     const int64_t y1 = ecam_i32(ecam_get_u32(&p[4]));
+    const uint32_t rest = t->tau_one - tau; /* 2^F - tau, at most 2^30 */
 #if ECAM_WORD_BITS == 64
-    const int64_t z = y0 * (int64_t)(t->tau_one - tau) + y1 * (int64_t)tau;
+    const int64_t z = y0 * (int64_t)rest + y1 * (int64_t)tau;
 #else
     /* Both factors are at most 2^30: two 32x32 signed multiply-accumulates. */
-    const uint32_t rest = t->tau_one - tau; /* 2^F - tau, at most 2^30 */
     const int64_t z = (y0 * (int32_t)rest) + (y1 * (int32_t)tau);
 #endif
 
@@ -497,7 +509,7 @@ static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint
     const uint64_t s = a0 + ecam_scaled(&t->slope[at + 4u], t->slope_scale);
     const uint64_t b0 = ecam_scaled(&t->curvature[at], t->curvature_scale);
     const uint64_t u = ecam_scaled(&t->curvature[at + 4u], t->curvature_scale) - b0;
-    const uint64_t k = slope ? 1u : 0u;
+    const uint64_t k = slope ? UINT64_C(1) : UINT64_C(0);
     uint64_t r = (1u + 4u * k) * (6u * d - 3u * s + u);
 
     r = (1u + 3u * k) * (7u * s - 15u * d - 2u * u + a0 + b0) + ecam_mulshift(t, r, tau);
@@ -570,7 +582,6 @@ static ECAM_INLINE int32_t ecam_linear_slope_at(const ecam_table *t, uint32_t i)
     return ecam_slope_out(t, ecam_sext32(ecam_get_u32(&p[4])) - ecam_sext32(ecam_get_u32(p)));
 }
 
-static ECAM_COLD int32_t ecam_position_outside(const ecam_table *t, int64_t m);
 static ECAM_COLD int32_t ecam_slope_outside(const ecam_table *t, int64_t m);
 
 /* A kernel: steps 1..6 for one degree and step kind (constants after inlining). A master inside
@@ -589,11 +600,12 @@ static ECAM_INLINE int32_t ecam_kernel(const ecam_table *t, int64_t master, unsi
     if ((uint64_t)m >= t->master_counts) {
 #endif
         if (degree != 1u) {
-            return slope ? ecam_slope_outside(t, m) : ecam_position_outside(t, m);
+            return slope ? ecam_slope_outside(t, m) : t->position_outside(t, m);
         }
-        /* Linear kernels have small frames: the wrap runs inline, without a second call. */
-        if (t->periodic == 0u) {
-            return slope ? 0 : (m < 0 ? t->end_position[0] : t->end_position[1]);
+        /* Linear kernels have small frames: the plain wrap runs inline, without a second call
+         * (the clamp and a net stroke's wrap go through position_outside). */
+        if (t->periodic != ECAM_WRAP) {
+            return slope ? ecam_slope_outside(t, m) : t->position_outside(t, m);
         }
         m = (int64_t)ecam_wrap(t, m);
     }
@@ -713,7 +725,7 @@ static int32_t ecam_general(const ecam_table *t, int64_t m, bool slope)
     unsigned k;
 
     if ((uint64_t)m >= t->master_limit) {
-        return slope ? ecam_slope_outside(t, m) : ecam_position_outside(t, m);
+        return slope ? ecam_slope_outside(t, m) : t->position_outside(t, m);
     }
     i = ecam_locate(t, (uint32_t)m, ecam_pow2(t), &tau32);
     at = (size_t)i * 4u;
@@ -745,12 +757,13 @@ static int32_t ecam_slope_general(const ecam_table *t, int64_t m)
 /* Entry points                                                                               */
 /* ------------------------------------------------------------------------------------------ */
 
-/* Step 1 for a master outside [0, M): the wrap of a periodic table, then the kernel again with
- * the master inside the period (a tail call: this frame is gone before the kernel runs), or
- * the clamp of a non-periodic table: the held end position, slope 0. */
+/* Step 1 for a master outside [0, M) (the position_outside of tables without a net stroke): the
+ * wrap of a periodic table, then the kernel again with the master inside the period (a tail
+ * call: this frame is gone before the kernel runs), or the clamp of a non-periodic table: the
+ * held end position, slope 0. */
 static ECAM_COLD int32_t ecam_position_outside(const ecam_table *t, int64_t m)
 {
-    if (t->periodic != 0u) {
+    if (t->periodic != ECAM_CLAMP) {
         return t->position_kernel(t, (int64_t)ecam_wrap(t, m));
     }
     return m < 0 ? t->end_position[0] : t->end_position[1];
@@ -758,24 +771,21 @@ static ECAM_COLD int32_t ecam_position_outside(const ecam_table *t, int64_t m)
 
 static ECAM_COLD int32_t ecam_slope_outside(const ecam_table *t, int64_t m)
 {
-    if (t->periodic != 0u) {
+    if (t->periodic != ECAM_CLAMP) { /* the slope has no net term */
         return t->slope_kernel(t, (int64_t)ecam_wrap(t, m));
     }
     return 0;
 }
 
-/* (q, r) = (floor(u / d), u mod d) for any u < 2^64 and 1 <= d < 2^32 with mu = floor((2^64 - 1)
- * / d): Barrett (hi(u mu) is floor(u / d) or at most two below), no divide. */
-static ECAM_COLD uint64_t ecam_divmod(uint64_t u, uint32_t d, uint64_t mu, uint64_t *rest)
+/* (floor(u / d), u mod d) for any u < 2^64 and 1 <= d < 2^32, with mu = floor((2^64 - 1) / d):
+ * mu > 2^64 / d - 1 makes hi(u mu) > u / d - 1, so it is floor(u / d) or one less, and one
+ * correction makes both exact (Barrett, no divide). */
+static ECAM_INLINE uint64_t ecam_divmod(uint64_t u, uint32_t d, uint64_t mu, uint64_t *rest)
 {
-    uint64_t q;
-    uint64_t unused;
-    uint64_t r;
-    unsigned k;
+    uint64_t q = ecam_mulhi_64x64(u, mu);
+    uint64_t r = u - (q * d); /* below 2d */
 
-    ecam_mul_64x64(u, mu, &q, &unused);
-    r = u - (q * d);
-    for (k = 0u; (k < 3u) && (r >= d); k++) {
+    if (r >= d) {
         r -= d;
         q++;
     }
@@ -783,51 +793,107 @@ static ECAM_COLD uint64_t ecam_divmod(uint64_t u, uint32_t d, uint64_t mu, uint6
     return q;
 }
 
-/* Floor division of an int64 (as bits) by a constant d < 2^32: the quotient's bits, and the
- * remainder in [0, d). Biased by 2^63 like the wrap: x = u - 2^63 with u = x + 2^63, and
- * 2^63 = bias_q d + bias_r. */
-static ECAM_COLD uint64_t ecam_floor_divmod(uint64_t x, uint32_t d, uint64_t mu, uint64_t bias_q,
-                                            uint32_t bias_r, uint32_t *rest)
+/* Step 1 with its quotient: m mod M, and k = floor(m / M) in *turns (as int64 bits), for every
+ * int64 m without a divide. u = m + 2^63 (the sign bit flipped) lies in [0, 2^64); with
+ * mu = floor((2^64 - 1) / M) > 2^64 / M - 1, q = hi(u mu) is floor(u / M) or one less, so
+ * r = u - q M lies in [0, 2M), below 2^32 (exact in 32 bits), and one correction makes q and r
+ * exact. Then m = u - 2^63 with 2^63 = period_bias M + mod_offset. */
+static ECAM_INLINE uint32_t ecam_wrap_turns(const ecam_table *t, int64_t m, uint64_t *turns)
 {
-    uint64_t r;
-    const uint64_t q = ecam_divmod(x ^ ECAM_SIGN_BIT64, d, mu, &r);
+#if ECAM_HAVE_INT128
+    /* The signed reduction of ecam_wrap, keeping its quotient. */
+    const ecam_int128 product = (ecam_int128)m * (ecam_int128)(int64_t)t->mod_recip;
+    int64_t q = (int64_t)(product >= 0 ? product >> 64 : ~(~product >> 64));
+    const int64_t r = ecam_i64((uint64_t)m - (uint64_t)q * t->master_counts);
 
-    if (r >= bias_r) {
-        *rest = (uint32_t)(r - bias_r);
-        return q - bias_q;
+    if (r < 0) {
+        *turns = (uint64_t)q - 1u;
+        return (uint32_t)r + t->master_counts;
     }
-    *rest = (uint32_t)((r + d) - bias_r);
-    return q - bias_q - 1u;
+    if (r >= (int64_t)t->master_counts) {
+        *turns = (uint64_t)q + 1u;
+        return (uint32_t)r - t->master_counts;
+    }
+    *turns = (uint64_t)q;
+    return (uint32_t)r;
+#else
+    const uint64_t u = (uint64_t)m ^ ECAM_SIGN_BIT64;
+    uint64_t q = ecam_mulhi_64x64(u, t->mod_recip);
+    uint32_t r = (uint32_t)u - ((uint32_t)q * t->master_counts);
+
+    if (r >= t->master_counts) {
+        r -= t->master_counts;
+        q++;
+    }
+    q -= t->period_bias;
+    if (r >= t->mod_offset) {
+        *turns = q;
+        return r - t->mod_offset;
+    }
+    *turns = q - 1u;
+    return r + t->mod_complement;
+#endif
 }
 
-/* Step 7 for a master outside [0, M) of a table with a net stroke N/D: k = floor(m / M) whole
- * periods add floor((k N + floor(D/2)) / D), taken modulo 2^32 (the int32 wrap). With
- * N = A D + B and k = kh D + kl (0 <= B, kl < D) that is k A + kh B + floor((kl B + floor(D/2)) /
- * D), whose last numerator stays below 2^64: no product leaves 64 bits, no divide. */
+/* The fractional part of step 7's term for k = turns whole periods (int64 bits), modulo 2^32:
+ * with N = A D + B (0 < B < D) and k = kh D + kl (0 <= kl < D), floor((k B + floor(D/2)) / D) =
+ * kh B + floor((kl B + floor(D/2)) / D), whose numerator is below D^2 < 2^64: no product leaves
+ * 64 bits, no divide. kh and kl by the biased floor division of the wrap: k + 2^63 = q D + r and
+ * 2^63 = net_bias D + net_bias_rest. Its own function: the common D = 1 keeps a small frame. */
+static ECAM_COLD uint32_t ecam_net_fraction(const ecam_table *t, uint64_t turns)
+{
+    uint64_t rest = 0u;
+    uint64_t kh = ecam_divmod(turns ^ ECAM_SIGN_BIT64, t->net_den, t->net_recip, &rest) - t->net_bias;
+    uint64_t kl;
+    uint64_t last;
+
+    if (rest >= t->net_bias_rest) {
+        kl = rest - t->net_bias_rest;
+    } else {
+        kl = (rest + t->net_den) - t->net_bias_rest;
+        kh--;
+    }
+    last = ecam_divmod((kl * t->net_rest) + t->net_half, t->net_den, t->net_recip, &rest);
+    return ((uint32_t)kh * t->net_rest) + (uint32_t)last;
+}
+
+/* Step 7 for a master outside [0, M) of a table with a net stroke N/D (its position_outside):
+ * k = floor(m / M) whole periods add floor((k N + floor(D/2)) / D) = k A + floor((k B +
+ * floor(D/2)) / D), taken modulo 2^32 (the int32 wrap); for D = 1 (B = 0) one multiply. The
+ * kernel then runs with the master inside the period. */
 static ECAM_COLD int32_t ecam_position_net_outside(const ecam_table *t, int64_t m)
 {
-    uint32_t local = 0u;
-    uint32_t kl = 0u;
-    uint64_t unused;
-    const uint64_t turns = ecam_floor_divmod((uint64_t)m, t->master_counts, t->mod_recip,
-                                             t->period_bias, t->mod_offset, &local);
-    const uint64_t kh = ecam_floor_divmod(turns, t->net_den, t->net_recip, t->net_bias,
-                                          t->net_bias_rest, &kl);
-    const uint64_t last = ecam_divmod(((uint64_t)kl * t->net_rest) + t->net_half, t->net_den,
-                                      t->net_recip, &unused);
-    const uint32_t term = ((uint32_t)turns * t->net_whole) + ((uint32_t)kh * t->net_rest) + (uint32_t)last;
-    const uint32_t base = (uint32_t)t->base_kernel(t, (int64_t)local);
+    uint64_t turns = 0u;
+    const uint32_t local = ecam_wrap_turns(t, m, &turns);
+    uint32_t term = (uint32_t)turns * t->net_whole;
 
-    return ecam_i32(base + term);
+    if (t->net_rest != 0u) {
+        term += ecam_net_fraction(t, turns);
+    }
+    return ecam_i32((uint32_t)t->position_kernel(t, (int64_t)local) + term);
 }
 
-/* The position kernel of a table with a net stroke: inside the period k = 0 and the term is 0. */
-static int32_t ecam_position_net(const ecam_table *t, int64_t m)
+/* The same for a linear table with a whole net stroke (D = 1), with steps 2..5 inline: its kernel
+ * is so small that a second dispatch and a frame would cost as much as the lookup itself. The
+ * position_outside of those tables, by step kind. */
+static ECAM_INLINE int32_t ecam_linear_whole_at(const ecam_table *t, int64_t m, bool pow2)
 {
-    if ((uint64_t)m < t->master_counts) {
-        return t->base_kernel(t, m);
-    }
-    return ecam_position_net_outside(t, m);
+    uint64_t turns = 0u;
+    uint32_t tau = 0u;
+    const uint32_t local = ecam_wrap_turns(t, m, &turns);
+    const uint32_t i = ecam_locate(t, local, pow2, &tau);
+
+    return ecam_i32((uint32_t)ecam_linear_at(t, i, tau) + ((uint32_t)turns * t->net_whole));
+}
+
+static ECAM_COLD int32_t ecam_linear_whole_pow2(const ecam_table *t, int64_t m)
+{
+    return ecam_linear_whole_at(t, m, true);
+}
+
+static ECAM_COLD int32_t ecam_linear_whole(const ecam_table *t, int64_t m)
+{
+    return ecam_linear_whole_at(t, m, false);
 }
 
 /* The hot path: one indirect jump to the kernel chosen at init. */
@@ -1509,7 +1575,7 @@ static ecam_slope_kernel ecam_pick_slope_kernel(const ecam_header *h)
 }
 
 /* The net stroke N/D per period (version 2): A = floor(N / D), B = N mod D and the reciprocals
- * of step 7; a table with one looks up through ecam_position_net. */
+ * of step 7, and the position_outside that applies them. */
 static void ecam_set_net_stroke(const ecam_header *h, ecam_table *t)
 {
     const uint32_t d = h->net_den; /* >= 1: checked */
@@ -1530,9 +1596,12 @@ static void ecam_set_net_stroke(const ecam_header *h, ecam_table *t)
     t->net_bias = ECAM_SIGN_BIT64 / d;
     t->net_bias_rest = (uint32_t)(ECAM_SIGN_BIT64 % d);
     t->period_bias = ECAM_SIGN_BIT64 / h->master_counts;
-    t->base_kernel = t->position_kernel;
-    if (magnitude != 0u) {
-        t->position_kernel = ecam_position_net;
+    if (magnitude != 0u) { /* checked: only periodic tables have one */
+        t->periodic = (uint8_t)ECAM_WRAP_NET;
+        t->position_outside = ecam_position_net_outside;
+        if ((d == 1u) && (h->degree == 1u)) {
+            t->position_outside = (h->step_shift >= 0) ? ecam_linear_whole_pow2 : ecam_linear_whole;
+        }
     }
 }
 
@@ -1571,7 +1640,7 @@ static void ecam_prepare(const uint8_t *blob, const ecam_header *h, ecam_table *
     t->end_position[1] = ecam_end_point(payload, h->points - 1u, h->position_bits);
     t->status = ECAM_OK;
     t->degree = (uint8_t)h->degree;
-    t->periodic = (uint8_t)(h->flags & 1u);
+    t->periodic = (uint8_t)(((h->flags & 1u) != 0u) ? ECAM_WRAP : ECAM_CLAMP);
     t->step_shift = pow2 ? (uint8_t)h->step_shift : 0u;
     t->tau_bits = (uint8_t)f;
     t->tau_lshift = (uint8_t)((32u - f) & 31u);
@@ -1584,6 +1653,7 @@ static void ecam_prepare(const uint8_t *blob, const ecam_header *h, ecam_table *
     ecam_set_multipliers(h, t);
     t->position_kernel = ecam_pick_kernel(h, pow2);
     t->slope_kernel = ecam_pick_slope_kernel(h);
+    t->position_outside = ecam_position_outside;
     ecam_set_net_stroke(h, t);
 }
 
@@ -1661,7 +1731,7 @@ static void ecam_pair_write(volatile ecam_table *dst, const ecam_table *src)
 
     dst->position_kernel = src->position_kernel;
     dst->slope_kernel = src->slope_kernel;
-    dst->base_kernel = src->base_kernel;
+    dst->position_outside = src->position_outside;
     dst->position = src->position;
     dst->slope = src->slope;
     dst->curvature = src->curvature;

@@ -1,5 +1,5 @@
 /*
- * ecam_table.h - C99 reference runtime for ecam cam tables, format version 1.
+ * ecam_table.h - C99 reference runtime for ecam cam tables, format versions 1 and 2.
  *
  * The blob layout, the loader's rules and the integer lookup arithmetic are specified in
  * FORMAT.md; this runtime follows it bit for bit, so it agrees exactly with the Python
@@ -16,9 +16,11 @@
  *
  * Failed and uninitialised tables: a table whose ecam_table_init failed, and a zero-filled table
  * that was never initialised (static storage), are "not ready". Every lookup on them returns
- * ECAM_INVALID (INT32_MIN) for the position and for the slope, a value no accepted table ever
- * returns (FORMAT.md, "Overflow proof"), so it is never mistaken for a servo command.
- * ecam_table_ready() says whether a table is usable; ecam_table_status() says why not.
+ * ECAM_INVALID (INT32_MIN) for the position and for the slope, a value no accepted table without
+ * a net stroke ever returns (FORMAT.md, "Overflow proof"), so it is never mistaken for a servo
+ * command. (A net stroke's position wraps through all of int32, INT32_MIN included.)
+ * ecam_table_ready() says whether a table is usable; ecam_table_status() says why not: check it
+ * once before enabling the axis rather than testing each value.
  *
  * Switching tables while an interrupt reads: never call ecam_table_init on a table an interrupt
  * may be reading. Use an ecam_table_pair (double buffer, one pointer store publishes the new
@@ -38,20 +40,22 @@ extern "C" {
 #define ECAM_FORMAT_VERSION 2 /* the newest blob format read; versions 1 and 2 load */
 #define ECAM_HEADER_BYTES 64
 
-/* Position and slope that every lookup on a table that is not ready returns. */
+/* Position and slope that every lookup on a table that is not ready returns (no accepted table
+ * returns it, except as the int32 wrap of a net stroke's position: see above). */
 #define ECAM_INVALID INT32_MIN
 
 /*
  * Result of ecam_table_init: 0, or the negative code of the first rule of FORMAT.md the blob
- * breaks. Every rejection rule has its own code; the loader checks them in the order of this
- * list (the envelope, the field rules, the length, the payload CRC, then the overflow proof).
+ * breaks. Every rejection rule has its own code; the loader checks them in FORMAT.md's order:
+ * the envelope (-1..-5), the field rules (-10..-24, then -34), the length (-7), the payload CRC
+ * (-8), then the overflow proof (-25..-31).
  */
 typedef enum ecam_status {
     ECAM_OK = 0,
     /* envelope */
     ECAM_E_SHORT = -1,       /* length shorter than the 64-byte header */
     ECAM_E_MAGIC = -2,       /* bytes 0..3 are not "ECAM" */
-    ECAM_E_VERSION = -3,     /* format_version is not 1 */
+    ECAM_E_VERSION = -3,     /* format_version is neither 1 nor 2 */
     ECAM_E_HEADER_SIZE = -4, /* header_bytes is not 64 */
     ECAM_E_HEADER_CRC = -5,  /* header_crc32 does not match bytes 0..59 */
     ECAM_E_FIELD = -6,       /* no longer returned: each field rule has its own code below */
@@ -61,7 +65,7 @@ typedef enum ecam_status {
     /* field rules (checked after the header CRC, before the length, in this order) */
     ECAM_E_DEGREE = -10,         /* degree is not 1, 3 or 5 */
     ECAM_E_FLAGS = -11,          /* a flag bit other than bit 0 (periodic) is set */
-    ECAM_E_RESERVED = -12,       /* a reserved byte (29..31, 48..59) is not 0 */
+    ECAM_E_RESERVED = -12,       /* a reserved byte (29..31; 48..59 in version 1) is not 0 */
     ECAM_E_POINTS = -13,         /* points < 2 */
     ECAM_E_MASTER_COUNTS = -14,  /* master_counts outside 2..2^31 */
     ECAM_E_STEP_COUNTS = -15,    /* step_counts outside 1..2^30, or (points - 1) * h != M */
@@ -103,7 +107,7 @@ typedef int32_t (*ecam_slope_kernel)(const ecam_table *table, int64_t master_cou
 struct ecam_table {
     ecam_position_kernel position_kernel; /* NULL unless ready */
     ecam_slope_kernel slope_kernel;       /* NULL unless ready */
-    ecam_position_kernel base_kernel;     /* net-stroke tables: the kernel without step 7 */
+    ecam_position_kernel position_outside; /* the position kernels' path past [0, M) */
     const uint8_t *position;              /* payload array 1 (little-endian int32, Q(Qy)) */
     const uint8_t *slope;                 /* payload array 2, NULL for degree 1 */
     const uint8_t *curvature;             /* payload array 3, NULL unless degree 5 */
@@ -137,7 +141,7 @@ struct ecam_table {
     uint32_t net_half;                    /* floor(D / 2) */
     uint32_t net_bias_rest;               /* 2^63 mod D */
     uint8_t degree;                       /* 1, 3 or 5 */
-    uint8_t periodic;                     /* 1 when the master axis wraps every M counts */
+    uint8_t periodic;                     /* outside [0, M): 0 clamp, 1 wrap, 2 wrap + net stroke */
     uint8_t position_wide;                /* 1 when 2^(W-Qy) > 2^30 (32-bit cores' kernels) */
     uint8_t step_shift;                   /* k when h = 2^k */
     uint8_t tau_bits;                     /* F */

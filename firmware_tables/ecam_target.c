@@ -8,8 +8,11 @@
  *                                        ecam_table_slope and the one-output lookups; the blob is
  *                                        also loaded at an odd address and must answer the same.
  *   ecam_target status BLOB...           one line "<status>" per blob (ecam_table_init).
- *   ecam_target count BLOB QUERIES WHAT  WHAT = runtime | minimal: position lookups only, for an
- *                                        instruction counter; prints "<calls> <checksum>".
+ *   ecam_target count BLOB WHAT QUERIES...
+ *                                        WHAT = runtime | minimal: position lookups only, for an
+ *                                        instruction counter; prints "<calls> <checksum>" per
+ *                                        query file, in order. minimal reads the payload into
+ *                                        native arrays and never calls ecam_table_init.
  *   ecam_target stack BLOB QUERIES       largest stack (bytes) one ecam_table_position, one
  *                                        ecam_table_slope and one ecam_table_lookup call used, by
  *                                        stack painting (ARM M-profile only; "unsupported"
@@ -198,50 +201,48 @@ static int do_status(int count, char **paths)
 }
 
 /* The payload as aligned native int32 arrays, for the minimal lookups. */
-static int32_t *native_arrays(const run_input *in, uint32_t *points)
+static int32_t *native_arrays(const unsigned char *blob, size_t len, uint32_t *points)
 {
-    const size_t words = (in->blob_len - ECAM_HEADER_BYTES) / 4u;
+    const size_t words = (len - ECAM_HEADER_BYTES) / 4u;
     int32_t *arrays = malloc(words * sizeof *arrays + 4u);
     size_t k;
 
-    *points = (uint32_t)get_i32(in->blob_storage + 16);
+    *points = (uint32_t)get_i32(blob + 16);
     for (k = 0; arrays != NULL && k < words; k++) {
-        arrays[k] = get_i32(in->blob_storage + ECAM_HEADER_BYTES + 4u * k);
+        arrays[k] = get_i32(blob + ECAM_HEADER_BYTES + 4u * k);
     }
     return arrays;
 }
 
-static int do_count(const char *blob_path, const char *query_path, const char *what)
+/* One query file's position lookups through the runtime or the minimal lookup. */
+static int count_file(const char *path, const ecam_table *table, const int32_t *arrays, uint32_t points,
+                      unsigned degree)
 {
-    run_input in;
-    uint64_t checksum = 0;
-    size_t k;
-    int rc = load(&in, blob_path, query_path);
+    size_t len = 0;
+    unsigned char *bytes = read_file(path, 0, &len);
     int64_t *queries;
+    uint64_t checksum = 0;
+    size_t count;
+    size_t k;
 
-    if (rc != 0) {
-        return rc;
+    if (bytes == NULL || len % 8u) {
+        fprintf(stderr, "ecam_target: cannot read %s\n", path);
+        return 2;
     }
-    queries = malloc(in.count * sizeof *queries + 8u);
+    count = len / 8u;
+    queries = malloc(count * sizeof *queries + 8u);
     if (queries == NULL) {
         return 2;
     }
-    for (k = 0; k < in.count; k++) {
-        queries[k] = get_i64(in.query_bytes + 8u * k);
+    for (k = 0; k < count; k++) {
+        queries[k] = get_i64(bytes + 8u * k);
     }
-    if (strcmp(what, "runtime") == 0) {
-        for (k = 0; k < in.count; k++) {
-            checksum = checksum * 31u + (uint32_t)ecam_table_position(&in.table, queries[k]);
+    if (table != NULL) {
+        for (k = 0; k < count; k++) {
+            checksum = checksum * 31u + (uint32_t)ecam_table_position(table, queries[k]);
         }
-    } else if (strcmp(what, "minimal") == 0) {
-        uint32_t points;
-        int32_t *arrays = native_arrays(&in, &points);
-        const unsigned degree = in.blob_storage[8];
-
-        if (arrays == NULL) {
-            return 2;
-        }
-        for (k = 0; k < in.count; k++) {
+    } else {
+        for (k = 0; k < count; k++) {
             const uint32_t m = (uint32_t)queries[k]; /* inside [0, M) by contract */
             int32_t p;
 
@@ -254,14 +255,51 @@ static int do_count(const char *blob_path, const char *query_path, const char *w
             }
             checksum = checksum * 31u + (uint32_t)p;
         }
-        free(arrays);
+    }
+    printf("%lu %08lx%08lx\n", (unsigned long)count, (unsigned long)(checksum >> 32),
+           (unsigned long)(checksum & 0xFFFFFFFFu));
+    free(queries);
+    free(bytes);
+    return 0;
+}
+
+static int do_count(const char *blob_path, const char *what, int files, char **query_paths)
+{
+    size_t len = 0;
+    unsigned char *blob = read_file(blob_path, 0, &len);
+    ecam_table table;
+    int32_t *arrays = NULL;
+    uint32_t points = 0;
+    int runtime = strcmp(what, "runtime") == 0;
+    int rc = 0;
+    int i;
+
+    if (blob == NULL || len < ECAM_HEADER_BYTES) {
+        fprintf(stderr, "ecam_target: cannot read %s\n", blob_path);
+        return 2;
+    }
+    if (runtime) {
+        const int status = ecam_table_init(&table, blob, len);
+
+        if (status != ECAM_OK) {
+            printf("error %d %s\n", status, ecam_status_name(status));
+            return 1;
+        }
+    } else if (strcmp(what, "minimal") == 0) {
+        arrays = native_arrays(blob, len, &points);
+        if (arrays == NULL) {
+            return 2;
+        }
     } else {
         fprintf(stderr, "ecam_target: count runtime|minimal, not %s\n", what);
         return 2;
     }
-    printf("%lu %08lx%08lx\n", (unsigned long)in.count, (unsigned long)(checksum >> 32),
-           (unsigned long)(checksum & 0xFFFFFFFFu));
-    return 0;
+    for (i = 0; i < files && rc == 0; i++) {
+        rc = count_file(query_paths[i], runtime ? &table : NULL, arrays, points, blob[8]);
+    }
+    free(arrays);
+    free(blob);
+    return rc;
 }
 
 #if ECAM_TARGET_PAINT
@@ -345,13 +383,13 @@ int main(int argc, char **argv)
     if (argc >= 3 && strcmp(argv[1], "status") == 0) {
         return do_status(argc - 2, argv + 2);
     }
-    if (argc == 5 && strcmp(argv[1], "count") == 0) {
-        return do_count(argv[2], argv[3], argv[4]);
+    if (argc >= 5 && strcmp(argv[1], "count") == 0) {
+        return do_count(argv[2], argv[3], argc - 4, argv + 4);
     }
     if (argc == 4 && strcmp(argv[1], "stack") == 0) {
         return do_stack(argv[2], argv[3]);
     }
     fprintf(stderr, "usage: ecam_target lookup BLOB QUERIES OUT | status BLOB... | "
-                    "count BLOB QUERIES runtime|minimal | stack BLOB QUERIES\n");
+                    "count BLOB runtime|minimal QUERIES... | stack BLOB QUERIES\n");
     return 2;
 }

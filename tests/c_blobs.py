@@ -1,4 +1,4 @@
-"""Independent pure-Python writer and reference lookup for ecam table blobs (FORMAT.md, v1).
+"""Independent pure-Python writer and reference lookup for ecam table blobs (FORMAT.md, versions 1 and 2).
 
 This is a test helper, not a test file. It is written straight from firmware_tables/FORMAT.md and
 imports nothing from ``ecam``, so it serves as a second oracle next to ``ecam.CamTable``:

@@ -125,6 +125,39 @@ def test_targets_and_rig_rows_are_reported(quick_run):
     assert "targets (shown, not asserted)" in text and "cycloidal" in text
 
 
+def test_quick_run_reports_exact_instruction_counts(quick_run):
+    """Instructions per lookup (runtime, minimal, ratio) on x86-64 and Cortex-M4 where the tools
+    exist, else a note naming the missing tool; the counts are exact, so the verdict is asserted."""
+    rows = quick_run[0]
+    notes = [r for r in rows if r["kind"] == "note" and r.get("topic") in ("instructions", "cortex-m4")]
+    text = bench.format_text(rows)
+    assert "instructions per lookup: exact counts" in text
+    for target in ("x86-64", "cortex-m4"):
+        measured = [r for r in notes if r.get("target") == target and "instructions_minimal" in r]
+        if not measured:
+            why = " ".join(r["text"] for r in notes if r.get("target") == target)
+            assert "not measured" in why and "not found" in why, why
+            continue
+        assert {r["interp"] for r in measured} == {"linear", "cubic", "quintic"}
+        for r in measured:
+            assert r["checksums_match"] is True, r["text"]
+            assert 0 < r["instructions_minimal"] and 0 < r["instructions_runtime_inside"] < r["instructions_runtime_wide"]
+            assert r["ratio_inside"] == pytest.approx(r["instructions_runtime_inside"] / r["instructions_minimal"])
+            assert r["ratio_wide"] == pytest.approx(r["instructions_runtime_wide"] / r["instructions_minimal"])
+            assert (r["limit_inside"], r["limit_wide"]) == (2.0, 3.0)
+            assert r["met"] is True, r["text"]
+            line = next(x for x in text.splitlines() if x.split()[:3] == [target, r["cam"], r["interp"]])
+            assert f"{r['ratio_inside']:.2f}x" in line and line.endswith("met")
+    footprint = [r for r in notes if r.get("topic") == "cortex-m4" and "flash_bytes" in r]
+    if footprint:
+        assert [r["opt"] for r in footprint] == ["-Os", "-O2"]
+        for r in footprint:
+            assert r["flash_bytes"] > 0 and r["ram_bytes"] == 0 and r["table_bytes"] > 0
+            assert 0 < r["stack_per_call_max"]["position"] <= 64 and 0 < r["stack_per_call_max"]["slope"] <= 64
+            line = next(x for x in text.splitlines() if x.split()[:2] == [r["opt"], str(r["flash_bytes"])])
+            assert f"{r['stack_per_call_max']['position']} B" in line, line
+
+
 def test_plot_writes_a_png(quick_run):
     _, plot = quick_run
     assert plot.is_file()

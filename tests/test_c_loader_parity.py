@@ -218,6 +218,58 @@ def test_issue_14_preshift_blob_is_rejected_by_both(cli, tmp_path):
     assert python_status(blob) == "ECAM_E_SLOPE_RANGE"
 
 
+def _c_lookup(cli: Path, path: Path, blob: bytes, queries: np.ndarray) -> np.ndarray:
+    path.write_bytes(blob)
+    stdin = ("\n".join(map(str, queries.tolist())) + "\n").encode()
+    proc = subprocess.run([str(cli), str(path)], input=stdin, capture_output=True)
+    assert proc.returncode == 0, proc.stderr
+    return np.array(proc.stdout.split(), dtype=np.int64).reshape(-1, 2)
+
+
+def _probe_masters(rng: np.random.Generator, M: int) -> np.ndarray:
+    return np.concatenate([
+        np.array([0, 1, M - 1, M, M + 1, -1, -M, 2**62, -(2**62), 2**63 - 1, -(2**63)], dtype=np.int64),
+        rng.integers(0, M, 300, dtype=np.int64),
+        rng.integers(-(2**63), 2**63 - 1, 60, dtype=np.int64, endpoint=True),
+    ])  # fmt: skip
+
+
+def test_every_slope_preshift_of_the_shipped_tables(cli, tmp_path):
+    """Issue 14 item 1 for every P: byte 15 (slope_preshift) set to each of 0..255 on every
+    shipped and golden table, header CRC recomputed. Both loaders give the same status for each;
+    where they accept (the proof holds for that P, 16 + F + W - P anywhere in 0..63, P past 63
+    too), C and Python look up the same positions and slopes, at the ends of the accepted range."""
+    paths = sorted((FIRMWARE / "tables").glob("*.bin")) + sorted((FIRMWARE / "vectors").glob("*.bin"))
+    blobs = []
+    for path in paths:
+        base = bytearray(path.read_bytes())
+        for P in range(256):
+            blob = bytearray(base)
+            blob[15] = P
+            blobs.append(reseal(blob))
+    c = c_statuses(cli, tmp_path / "preshift", blobs)
+    py = [python_status(b) for b in blobs]
+    differ = [(paths[k // 256].stem, k % 256, c[k], py[k]) for k in range(len(blobs)) if c[k] != py[k]]
+    assert not differ, differ[:10]
+    assert {"ECAM_OK", "ECAM_E_SLOPE_PRESHIFT", "ECAM_E_SLOPE_RANGE"} <= set(c)
+    rng = np.random.default_rng(SEED + 3)
+    for n, path in enumerate(paths):
+        statuses = c[256 * n:256 * (n + 1)]
+        accepted = [P for P, status in enumerate(statuses) if status == "ECAM_OK"]
+        scaled = 16 + blobs[256 * n][11] + blobs[256 * n][12]  # 16 + F + W
+        assert accepted and max(accepted) < scaled, (path.stem, accepted)  # a zero final shift never proves
+        assert statuses[scaled + 1:] == ["ECAM_E_SLOPE_PRESHIFT"] * (255 - scaled)
+        for P in sorted({accepted[0], *accepted[-3:]}):
+            blob = blobs[256 * n + P]
+            table = CamTable.from_bytes(blob)
+            queries = _probe_masters(rng, table.master_counts)
+            got = _c_lookup(cli, tmp_path / "p.ecam", blob, queries)
+            positions, slopes = table.lookup(queries, with_slope=True)
+            expected = np.stack([cb.int32_wrap(positions), slopes], 1)
+            bad = np.flatnonzero((got != expected).any(axis=1))
+            assert not bad.size, f"{path.stem} P={P}: m={queries[bad[0]]} C={tuple(got[bad[0]])} Python={tuple(expected[bad[0]])}"
+
+
 def test_loaders_accept_exactly_the_same_blobs(cli, tmp_path):
     blobs = mutants()
     c = c_statuses(cli, tmp_path / "mutants", blobs)
@@ -248,18 +300,8 @@ def test_accepted_mutants_look_up_alike(cli, tmp_path):
     for n, k in enumerate(sorted(picks.tolist())):
         blob = accepted[k]
         table = CamTable.from_bytes(blob)
-        M = table.master_counts
-        queries = np.concatenate([
-            np.array([0, 1, M - 1, M, M + 1, -1, -M, 2**62, -(2**62), 2**63 - 1, -(2**63)], dtype=np.int64),
-            rng.integers(0, M, 200, dtype=np.int64),
-            rng.integers(-(2**63), 2**63 - 1, 100, dtype=np.int64, endpoint=True),
-        ])  # fmt: skip
-        path = tmp_path / f"acc{n}.ecam"
-        path.write_bytes(blob)
-        stdin = ("\n".join(map(str, queries.tolist())) + "\n").encode()
-        proc = subprocess.run([str(cli), str(path)], input=stdin, capture_output=True)
-        assert proc.returncode == 0, proc.stderr
-        got = np.array(proc.stdout.split(), dtype=np.int64).reshape(-1, 2)
+        queries = _probe_masters(rng, table.master_counts)
+        got = _c_lookup(cli, tmp_path / f"acc{n}.ecam", blob, queries)
         positions, slopes = table.lookup(queries, with_slope=True)
         expected = np.stack([cb.int32_wrap(positions), slopes], 1)  # C: the int32 wrap (net stroke)
         bad = np.flatnonzero((got != expected).any(axis=1))

@@ -868,13 +868,16 @@ RUNTIME_WARNINGS = ["-std=c99", "-Wall", "-Wextra", "-Wconversion", "-Wsign-conv
 ARITHMETIC_PATHS = {"word64": [], "no_int128": ["-DECAM_NO_INT128"], "word32": ["-DECAM_WORD_BITS=32"]}
 
 
+@pytest.mark.parametrize("compiler", ["cc", "clang"])
 @pytest.mark.parametrize("opt", ["-O0", "-O2", "-Os"])
 @pytest.mark.parametrize("path", list(ARITHMETIC_PATHS))
-def test_runtime_compiles_without_warnings(build_dir, path, opt):
-    cc = _compiler()
+def test_runtime_compiles_without_warnings(build_dir, path, opt, compiler):
+    """The promised warning set, with the system compiler and with clang (Debian: clang) where
+    installed, on every arithmetic path and optimisation level."""
+    cc = _compiler() if compiler == "cc" else shutil.which(compiler)
     if cc is None:
-        pytest.skip("no C compiler (cc/gcc/clang) on PATH")
-    for source in ("ecam_table.c", "ecam_minimal.c"):
+        pytest.skip(f"{compiler} not found (Debian: apt-get install {'gcc' if compiler == 'cc' else compiler})")
+    for source in ("ecam_table.c", "ecam_minimal.c", "ecam_target.c"):
         cmd = [cc, *RUNTIME_WARNINGS, opt, *ARITHMETIC_PATHS[path], "-c", "-o", str(build_dir / "w.o"),
                str(FIRMWARE / source)]  # fmt: skip
         proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -1055,9 +1058,11 @@ def net_stroke_cases() -> list:
 
     rng = np.random.default_rng(934)
     out = []
-    for k, (num, den) in enumerate(NET_STROKES):
-        degree = (1, 3, 5)[k % 3]
-        M, N = ((2**20, 64), (360_000, 60), (3, 1), (2**31, 2))[k % 4]
+    # every degree with a whole stroke (D = 1) and h = 6000 too (the linear kernel's own step 7)
+    cases = [(num, den, (1, 3, 5)[k % 3], ((2**20, 64), (360_000, 60), (3, 1), (2**31, 2))[k % 4])
+             for k, (num, den) in enumerate(NET_STROKES)]
+    cases += [(-1234567, 1, degree, (360_000, 60)) for degree in (1, 3, 5)]
+    for num, den, degree, (M, N) in cases:
         table = dataclasses.replace(cb.random_table(rng, degree, True, M, N), net_num=num, net_den=den)
         queries = cb.random_queries(rng, table, 4000)
         expected = np.array([cb.reference_lookup(table, m) for m in queries.tolist()], dtype=np.int64)
@@ -1065,7 +1070,7 @@ def net_stroke_cases() -> list:
         python = np.stack([np.asarray(cam.lookup(queries), dtype=np.int64), np.asarray(cam.slope(queries))], 1)
         assert_same(queries, python, expected, f"CamTable vs tests/c_blobs.py, net {num}/{den}")
         expected[:, 0] = cb.int32_wrap(expected[:, 0])
-        out.append((f"net{num}/{den}", cb.make_blob(table), queries, expected))
+        out.append((f"net{num}/{den}-deg{degree}", cb.make_blob(table), queries, expected))
     return out
 
 

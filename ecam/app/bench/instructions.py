@@ -4,9 +4,12 @@ Counts, not times: the same binary and inputs give the same numbers on any machi
 
 - x86-64 (here): ``valgrind --tool=callgrind --toggle-collect=FUNCTION``, i.e. every instruction
   executed inside one call of FUNCTION and what it calls, summed over the queries;
-- Cortex-M4: QEMU ``mps2-an386`` with one instruction per translation block and an ``exec`` log,
-  counting the instructions whose address lies in the runtime's (or the minimal lookup's)
-  functions, from the first call on; the number of calls is the number of entries.
+- Cortex-M4: QEMU ``mps2-an386`` with one instruction per translation block and an ``exec`` log
+  filtered to the functions a lookup can run and the driver loop that calls it
+  (:func:`count_ranges`): each call counts every instruction from its entry until control is
+  back in the driver, the same inclusive count (tests/test_cross_targets.py checks it against an
+  unfiltered log, call by call). The loader's functions are left out of the log: a large
+  table's overflow proof would otherwise write hundreds of megabytes before the first call.
 
 What is compared (issue 11): ``runtime`` is one call of ``ecam_table_position`` (entry, kernel,
 wrap); ``minimal`` is one call of ``ecam_minimal_<degree>`` from firmware_tables/ecam_minimal.c,
@@ -22,15 +25,16 @@ stack of one call (stack painting under QEMU) and sizeof(ecam_table), at -Os and
 
 Bench rows (kind ``"note"``, so every consumer of the existing kinds keeps working):
 
-- topic ``"instructions"``: ``target`` ("x86-64" or "cortex-m4"), ``compiler``, ``interp``,
-  ``points``, ``step_counts``, ``queries``, ``instructions_runtime_inside``,
+- topic ``"instructions"``: ``target`` ("x86-64" or "cortex-m4"), ``compiler``, ``cam``, ``interp``,
+  ``points``, ``step_counts``, ``net_stroke`` (N/D as text, "0" for none), ``queries``, ``instructions_runtime_inside``,
   ``instructions_runtime_wide``, ``instructions_minimal``, ``ratio_inside``, ``ratio_wide``,
   ``limit_inside`` (2), ``limit_wide`` (3), ``checksums_match``, ``met``, ``text``; or only
   ``target`` and ``text`` saying what was not measured and why (a missing tool is named);
 - topic ``"cortex-m4"``: ``opt``, ``flash_bytes``, ``ram_bytes``, ``text_bytes``/``data_bytes``/``bss_bytes``,
-  ``largest_frame``, ``frames``, ``stack_per_call`` (per degree: position, slope, lookup, init),
-  ``stack_per_call_max``, ``table_bytes``, ``pair_bytes``, ``text``; or a note naming the
-  missing tool.
+  ``largest_frame``, ``frames``, ``stack_per_call`` (per measured table: position, slope, lookup,
+  init), ``stack_per_call_max`` (tables without a net stroke), ``stack_per_call_max_net_stroke``
+  (None in the quick run, which measures none), ``table_bytes``, ``pair_bytes``, ``text``; or a
+  note naming the missing tool.
 """
 
 from __future__ import annotations
@@ -45,11 +49,13 @@ from pathlib import Path
 import numpy as np
 
 from ecam.compile import compile_table
+from ecam.table import CamTable
 
-from .cross import TARGETS, build, missing, run
+from .cross import M4_FLAGS, M4_MACHINE, TARGETS, build, missing, run
 from .plan import FIRMWARE_DIR, MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
 
 DEGREES = {1: "linear", 3: "cubic", 5: "quintic"}
+NET_STROKE_CAM = "rotary_knife"  # golden tables in firmware_tables/vectors with a net stroke
 LIMITS = {"inside": 2.0, "wide": 3.0}
 HOST_FLAGS = ("-O2", "-std=c99")
 M4_OPTS = ("-Os", "-O2")
@@ -123,21 +129,38 @@ def _callgrind(exe: Path, args: list, function: str, cwd: Path) -> tuple[int, st
     return int(match.group(1)), proc.stdout
 
 
-def host_counts(directory: Path, blob: bytes, fmt, count: int) -> Measured:
-    """x86-64 counts of one table (cc -O2), per call."""
-    cc = host_compiler()
-    exe = directory / "ecam_count_host"
-    cmd = [cc, *HOST_FLAGS, *minimal_defines(fmt), "-I", str(FIRMWARE_DIR),
-           *(str(FIRMWARE_DIR / s) for s in ("ecam_target.c", "ecam_table.c", "ecam_minimal.c")), "-o", str(exe)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+def _compile(compiler: str, flags: list, source: str, obj: Path, what: str, reuse: bool = True) -> Path:
+    """FIRMWARE_DIR/source compiled to obj; with `reuse`, an existing obj is kept (the objects
+    that do not depend on the table are built once per run; ecam_minimal.c, with its -D
+    constants, is always rebuilt)."""
+    if reuse and obj.is_file():
+        return obj
+    cmd = [compiler, *flags, "-I", str(FIRMWARE_DIR), "-c", str(FIRMWARE_DIR / source), "-o", str(obj)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=obj.parent, timeout=300)
     if proc.returncode != 0:
-        raise RuntimeError(f"host build failed: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
+        raise RuntimeError(f"{what} {source}: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
+    return obj
+
+
+def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | None = None) -> Measured:
+    """x86-64 counts of one table (cc -O2), per call; ecam_table.o and ecam_target.o are built
+    once into `shared` (default: `directory`)."""
+    cc = host_compiler()
+    shared = shared or directory
+    exe = directory / "ecam_count_host"
+    objects = [_compile(cc, list(HOST_FLAGS), f"{stem}.c", shared / f"host_{stem}.o", "host build")
+               for stem in ("ecam_target", "ecam_table")]
+    objects.append(_compile(cc, [*HOST_FLAGS, *minimal_defines(fmt)], "ecam_minimal.c", directory / "host_minimal.o",
+                            "host build", reuse=False))  # fmt: skip
+    proc = subprocess.run([cc, *map(str, objects), "-o", str(exe)], capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0:
+        raise RuntimeError(f"host link failed: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
     (directory / "table.bin").write_bytes(blob)
     inside, wide = write_queries(directory, fmt.master_counts, count)
     name = DEGREES[fmt.degree]
-    runtime_in, out_in = _callgrind(exe, ["count", "table.bin", inside, "runtime"], "ecam_table_position", directory)
-    runtime_wide, _ = _callgrind(exe, ["count", "table.bin", wide, "runtime"], "ecam_table_position", directory)
-    minimal, out_min = _callgrind(exe, ["count", "table.bin", inside, "minimal"], f"ecam_minimal_{name}", directory)
+    runtime_in, out_in = _callgrind(exe, ["count", "table.bin", "runtime", inside], "ecam_table_position", directory)
+    runtime_wide, _ = _callgrind(exe, ["count", "table.bin", "runtime", wide], "ecam_table_position", directory)
+    minimal, out_min = _callgrind(exe, ["count", "table.bin", "minimal", inside], f"ecam_minimal_{name}", directory)
     return Measured(runtime_in / count, runtime_wide / count, minimal / count, out_in.split() == out_min.split())
 
 
@@ -147,24 +170,30 @@ def host_counts(directory: Path, blob: bytes, fmt, count: int) -> Measured:
 def m4_note() -> str:
     """'' when Cortex-M4 figures can be taken, else which tool is missing."""
     why = missing(TARGETS["cortex-m4"])
-    for tool, package in (("arm-none-eabi-size", "binutils-arm-none-eabi"), ("arm-none-eabi-nm", "binutils-arm-none-eabi")):
+    for tool in ("arm-none-eabi-size", "arm-none-eabi-nm", "arm-none-eabi-objdump"):
+        package = "binutils-arm-none-eabi"
         if not why and shutil.which(tool) is None:
             why = f"cortex-m4: {tool} not found (Debian: apt-get install {package})"
     return why
 
 
-def _objects(directory: Path, opt: str, defines: list) -> dict:
-    """ecam_table.o and ecam_minimal.o for the M4 at `opt` (their symbols delimit the counting)."""
-    out = {}
-    for source in ("ecam_table.c", "ecam_minimal.c"):
-        obj = directory / f"m4{opt}_{source[:-2]}.o"
-        cmd = ["arm-none-eabi-gcc", "-mcpu=cortex-m4", "-mthumb", "-std=c99", opt, *defines, "-fstack-usage",
-               "-I", str(FIRMWARE_DIR), "-c", str(FIRMWARE_DIR / source), "-o", str(obj)]  # fmt: skip
-        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=directory, timeout=300)
-        if proc.returncode != 0:
-            raise RuntimeError(f"cortex-m4 {source}: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
-        out[source[:-2]] = obj
+def _objects(directory: Path, opt: str, defines: list, shared: Path | None = None) -> dict:
+    """ecam_table.o, ecam_target.o (built once into `shared`) and ecam_minimal.o (with this
+    table's constants, into `directory`) for the M4 at `opt`; their symbols delimit the
+    counting, and -fstack-usage writes each one's frames next to it."""
+    shared = shared or directory
+    flags = [*M4_FLAGS, opt, "-fstack-usage"]
+    out = {stem: _compile("arm-none-eabi-gcc", flags, f"{stem}.c", shared / f"m4{opt}_{stem}.o", "cortex-m4")
+           for stem in ("ecam_table", "ecam_target")}
+    out["ecam_minimal"] = _compile("arm-none-eabi-gcc", [*flags, *defines], "ecam_minimal.c",
+                                   directory / f"m4{opt}_ecam_minimal.o", "cortex-m4", reuse=False)  # fmt: skip
     return out
+
+
+def _m4_link(directory: Path, opt: str, objects: dict, name: str) -> Path:
+    """The count/stack driver for the M4 from the objects of :func:`_objects`."""
+    sources = [str(objects[stem]) for stem in ("ecam_target", "ecam_table", "ecam_minimal")]
+    return build(TARGETS["cortex-m4"], directory / name, [opt], sources=sources)
 
 
 def _functions(nm_target: Path) -> dict:
@@ -178,61 +207,139 @@ def _functions(nm_target: Path) -> dict:
     return out
 
 
-def counted_ranges(elf: Path, objects: list) -> list:
-    """(start, size) of the functions defined in `objects` (and libgcc's __aeabi helpers) in the ELF."""
-    names = set()
+# The loading API: what only these reach runs before any lookup (see lookup_ranges).
+LOADER_ENTRIES = ("ecam_table_init", "ecam_pair_load")
+_FUNCTION_HEAD = re.compile(r"^([0-9a-f]+) <([^>]+)>:$")
+_DIRECT_BRANCH = re.compile(r"^\s*[0-9a-f]+:\s+b[a-z.]*\s+([0-9a-f]+) <")
+
+
+def _direct_calls(elf: Path) -> dict:
+    """function start -> starts of the other functions it branches to directly (bl, and b.w tail
+    calls), from the ELF's disassembly. Indirect calls (blx rN, bx rN) are not in it."""
+    proc = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", str(elf)],
+                          capture_output=True, text=True)  # fmt: skip
+    if proc.returncode != 0:
+        raise RuntimeError(f"arm-none-eabi-objdump: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
+    targets = {}
+    current = None
+    for line in proc.stdout.splitlines():
+        head = _FUNCTION_HEAD.match(line)
+        if head:
+            current = targets.setdefault(int(head.group(1), 16), set())
+            continue
+        branch = _DIRECT_BRANCH.match(line)
+        if branch and current is not None:
+            current.add(int(branch.group(1), 16))
+    return targets
+
+
+def lookup_ranges(elf: Path, objects: list) -> list:
+    """(start, size) of every function that can run in a lookup of the functions in `objects`.
+
+    A lookup runs the functions of `objects` (the entry and, through the table's pointers, the
+    kernels) and whatever they call directly, libgcc's helpers included. Left out: the functions
+    only the loader reaches (direct calls from LOADER_ENTRIES: the CRC, the field rules, the
+    overflow proof). They run before the first counted call, so tracing them would only fill the
+    log (hundreds of megabytes for a table of thousands of points); a function that any other
+    function of `objects` calls directly stays in, and the kernels, which the lookup calls
+    through the table's pointers, are called by no loader function, so they stay in too."""
+    functions = _functions(elf)
+    ranges = sorted((start, size) for start, size in functions.values() if size)
+    starts = [start for start, _ in ranges]
+
+    def owner(address: int) -> int | None:
+        k = int(np.searchsorted(starts, address, side="right")) - 1
+        return starts[k] if k >= 0 and address < ranges[k][0] + ranges[k][1] else None
+
+    edges = {start: {owner(t) for t in targets} - {None, start} for start, targets in _direct_calls(elf).items()}
+
+    def closure(roots: set) -> set:
+        seen, todo = set(), list(roots)
+        while todo:
+            f = todo.pop()
+            if f not in seen:
+                seen.add(f)
+                todo.extend(edges.get(f, ()))
+        return seen
+
+    defined = set()
     for obj in objects:
-        names.update(_functions(obj))
-    return sorted((start, size) for name, (start, size) in _functions(elf).items()
-                  if size and (name in names or name.startswith("__aeabi_")))  # fmt: skip
+        for name in _functions(obj):
+            if name not in functions:
+                raise RuntimeError(f"{name} of {Path(obj).name} is not in {elf.name}")
+            defined.add(functions[name][0])
+    loader = closure({functions[name][0] for name in LOADER_ENTRIES if name in functions} & defined)
+    roots = defined - loader
+    size = dict(ranges)
+    return sorted((start, size[start]) for start in closure(roots))
 
 
-def trace_count(elf: Path, trace: Path, entry: str, objects: list) -> tuple[int, int]:
-    """(calls of `entry`, instructions executed in the functions of `objects` from the first call
-    on): the QEMU exec log has one line per instruction ("[cs_base/pc/flags/cflags]")."""
-    ranges = [(start, start + size) for start, size in counted_ranges(elf, objects)]
+def count_ranges(elf: Path, objects: list, entry: str) -> list:
+    """What a count traces: :func:`lookup_ranges` plus the functions that call `entry` directly
+    (the driver's loop), so that the log shows where each call returns."""
+    functions = _functions(elf)
+    target = functions[entry][0]
+    callers = {start for start, targets in _direct_calls(elf).items() if target in targets}
+    size = {start: n for start, n in functions.values()}
+    return sorted(set(lookup_ranges(elf, objects)) | {(start, size[start]) for start in callers if size.get(start)})
+
+
+def call_counts(elf: Path, trace: Path, entry: str) -> np.ndarray:
+    """Instructions of each call of `entry`, in order: every logged instruction from the call
+    until control is back in its caller, i.e. callgrind's inclusive count. QEMU's exec log with
+    one instruction per translation block has one line per instruction ("[cs_base/pc/flags/
+    cflags]"). On a log filtered by :func:`count_ranges` only the functions a lookup can run are
+    seen; on an unfiltered log (slow: the whole program), everything: the tests compare both."""
+    functions = _functions(elf)
+    ranges = sorted((start, size) for start, size in functions.values() if size)
     starts = np.array([a for a, _ in ranges], dtype=np.int64)
-    ends = np.array([b for _, b in ranges], dtype=np.int64)
-    entry_address = _functions(elf)[entry][0]
+    ends = np.array([a + n for a, n in ranges], dtype=np.int64)
+    entry_address = functions[entry][0]
     pattern = re.compile(r"\[[0-9a-f]+/([0-9a-f]+)/")
-    pcs = np.array([int(m.group(1), 16) for m in map(pattern.search, trace.read_text().splitlines()) if m],
-                   dtype=np.int64)  # fmt: skip
-    first = np.flatnonzero(pcs == entry_address)
-    if not first.size:
-        return 0, 0
-    pcs = pcs[first[0]:]
+    with trace.open() as log:
+        pcs = np.array([int(m.group(1), 16) for m in map(pattern.search, log) if m], dtype=np.int64)
     slot = np.searchsorted(starts, pcs, side="right") - 1
-    inside = (slot >= 0) & (pcs < ends[np.clip(slot, 0, None)])
-    return int(np.count_nonzero(pcs == entry_address)), int(np.count_nonzero(inside))
+    owner = np.where((slot >= 0) & (pcs < ends[np.clip(slot, 0, None)]), slot, -1)
+    counts = []
+    done = 0
+    for start in np.flatnonzero(pcs == entry_address).tolist():
+        if start < done:  # the entry again inside a call (none of the lookups does that)
+            raise RuntimeError(f"{entry} re-entered within a call at trace line {start}")
+        caller = owner[start - 1] if start else -1
+        back = np.flatnonzero(owner[start:] == caller) if caller >= 0 else np.array([])
+        if not back.size:
+            raise RuntimeError(f"{entry} call at trace line {start} does not return to a traced caller")
+        done = start + int(back[0])
+        counts.append(done - start)
+    return np.array(counts, dtype=np.int64)
 
 
-def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2") -> Measured:
-    """Cortex-M4 counts of one table, per call."""
+def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2", shared: Path | None = None) -> Measured:
+    """Cortex-M4 counts of one table, per call; the objects that do not depend on the table are
+    built once into `shared` (default: `directory`). Two QEMU runs: the runtime on both query
+    sets (its calls split by position in the log), the minimal lookup on the inside set."""
     target = TARGETS["cortex-m4"]
-    defines = minimal_defines(fmt)
-    elf = build(target, directory / f"ecam_count_m4{opt}.elf", [opt, *defines])
-    objects = _objects(directory, opt, defines)
+    objects = _objects(directory, opt, minimal_defines(fmt), shared)
+    elf = _m4_link(directory, opt, objects, f"ecam_count_m4{opt}.elf")
     (directory / "table.bin").write_bytes(blob)
     inside, wide = write_queries(directory, fmt.master_counts, count)
-    name = DEGREES[fmt.degree]
-    results = {}
-    for key, queries, what, entry, obj in (
-        ("runtime_inside", inside, "runtime", "ecam_table_position", objects["ecam_table"]),
-        ("runtime_wide", wide, "runtime", "ecam_table_position", objects["ecam_table"]),
-        ("minimal", inside, "minimal", f"ecam_minimal_{name}", objects["ecam_minimal"]),
-    ):
+    runs = {}
+    for what, entry, obj, queries in (("runtime", "ecam_table_position", objects["ecam_table"], [inside, wide]),
+                                      ("minimal", f"ecam_minimal_{DEGREES[fmt.degree]}", objects["ecam_minimal"], [inside])):
         trace = directory / "trace.log"
-        proc = run(target, elf, ["count", "table.bin", queries, what], directory, trace=trace,
-                   ranges=counted_ranges(elf, [obj]))
+        ranges = count_ranges(elf, [obj], entry)
+        proc = run(target, elf, ["count", "table.bin", what, *queries], directory, trace=trace, ranges=ranges)
         if proc.returncode != 0:
             raise RuntimeError(f"cortex-m4 count {what}: exit {proc.returncode} {proc.stdout.strip()} {proc.stderr.strip()}")
-        calls, instructions = trace_count(elf, trace, entry, [obj])
-        if calls != count:
-            raise RuntimeError(f"cortex-m4 trace saw {calls} calls of {entry}, expected {count}")
-        results[key] = (instructions / calls, proc.stdout.split())
+        calls = call_counts(elf, trace, entry)
         trace.unlink()
-    match = results["runtime_inside"][1] == results["minimal"][1]
-    return Measured(results["runtime_inside"][0], results["runtime_wide"][0], results["minimal"][0], match)
+        if calls.size != count * len(queries):
+            raise RuntimeError(f"cortex-m4 trace saw {calls.size} calls of {entry}, expected {count * len(queries)}")
+        runs[what] = ([float(calls[k * count:(k + 1) * count].mean()) for k in range(len(queries))],
+                      proc.stdout.splitlines())
+    (runtime_inside, runtime_wide), lines = runs["runtime"]
+    (minimal,), minimal_lines = runs["minimal"]
+    return Measured(runtime_inside, runtime_wide, minimal, lines[0].split() == minimal_lines[0].split())
 
 
 def _stack_usage(su: Path) -> dict:
@@ -245,24 +352,24 @@ def _stack_usage(su: Path) -> dict:
     return out
 
 
-def m4_footprint(directory: Path, blobs: dict) -> list[dict]:
+def m4_footprint(directory: Path, blobs: dict, shared: Path | None = None) -> list[dict]:
     """Flash, RAM and stack of the runtime on the Cortex-M4 at -Os and -O2 (one dict each).
-    `blobs`: degree -> blob, for the measured (painted) stack of each API call."""
+    `blobs`: name -> blob, for the measured (painted) stack of each API call on that table."""
     target = TARGETS["cortex-m4"]
     rng = np.random.default_rng(_SEED + 1)
     out = []
     for opt in M4_OPTS:
-        objects = _objects(directory, opt, [])
+        objects = _objects(directory, opt, [], shared)
         size = subprocess.run(["arm-none-eabi-size", str(objects["ecam_table"])], capture_output=True, text=True)
         text, data, bss = (int(v) for v in size.stdout.splitlines()[1].split()[:3])
         frames = _stack_usage(objects["ecam_table"].with_suffix(".su"))
         kernel_frames = {name: frames[name] for name in frames if name != "ecam_slope_ok" and name.startswith(
             ("ecam_position_", "ecam_slope_", "ecam_table_position", "ecam_table_slope", "ecam_table_lookup",
-             "ecam_general", "ecam_coefficient", "ecam_quintic", "ecam_cubic", "ecam_linear"))}  # fmt: skip
-        elf = build(target, directory / f"ecam_stack_m4{opt}.elf", [opt])
+             "ecam_general", "ecam_coefficient", "ecam_quintic", "ecam_cubic", "ecam_linear", "ecam_net_"))}  # fmt: skip
+        elf = _m4_link(directory, opt, objects, f"ecam_stack_m4{opt}.elf")
         painted = {}
         sizes = {}
-        for degree, blob in sorted(blobs.items()):
+        for name, blob in blobs.items():
             (directory / "stack.bin").write_bytes(blob)
             master_counts = int.from_bytes(blob[20:24], "little")
             queries = np.concatenate([rng.integers(0, master_counts, 64, dtype=np.int64),
@@ -273,7 +380,7 @@ def m4_footprint(directory: Path, blobs: dict) -> list[dict]:
                 raise RuntimeError(f"cortex-m4 stack: exit {proc.returncode} {proc.stdout.strip()}")
             words = proc.stdout.split()
             values = dict(zip(words[::2], (int(w) for w in words[1::2])))
-            painted[DEGREES[degree]] = {k: values[k] for k in ("position", "slope", "lookup", "init")}
+            painted[name] = {k: values[k] for k in ("position", "slope", "lookup", "init")}
             sizes = {k: values[k] for k in ("table_bytes", "pair_bytes")}
         out.append({"opt": opt, "flash_bytes": text + data, "ram_bytes": data + bss, "text_bytes": text,
                     "data_bytes": data, "bss_bytes": bss, "largest_frame": max(kernel_frames.values()), "frames": kernel_frames,
@@ -285,33 +392,41 @@ def m4_footprint(directory: Path, blobs: dict) -> list[dict]:
 
 
 def bench_tables(quick: bool) -> list:
-    """The measured tables: the seed cam at the bench scale, each kind at 145 points (h = 8192, a
-    power of two); the full run adds 97 points (h = 12288, not a power of two)."""
+    """(cam, table) pairs measured: the seed cam at the bench scale, each kind at 145 points
+    (h = 8192, a power of two); the full run adds 97 points (h = 12288, not a power of two) and
+    the golden rotary-knife tables (a net stroke of 360000 counts per period, h = 3000), whose
+    masters outside the period also take step 7."""
     profile = bench_profile(SEED_CAM)
     low, high = profile.slave_range
     scale = STROKE_COUNTS / (high - low)
     out = []
     for points in (145,) if quick else (145, 97):
         for kind in ("linear", "cubic", "quintic"):
-            out.append(compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
-                                     slave_counts_per_unit=scale))  # fmt: skip
+            out.append((SEED_CAM, compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
+                                                slave_counts_per_unit=scale)))  # fmt: skip
+    for kind in () if quick else ("linear", "cubic", "quintic"):
+        path = FIRMWARE_DIR / "vectors" / f"{NET_STROKE_CAM}_{kind}.bin"
+        if path.is_file():
+            out.append((NET_STROKE_CAM, CamTable.from_bytes(path.read_bytes())))
     return out
 
 
-def _describe(table) -> str:
+def _describe(cam: str, table) -> str:
     f = table.format
-    return f"{SEED_CAM} {DEGREES[f.degree]}, {f.points} points (h = {f.step_counts})"
+    net = f", net stroke {f.net_stroke_num}/{f.net_stroke_den}" if f.net_stroke_num else ""
+    return f"{cam} {DEGREES[f.degree]}, {f.points} points (h = {f.step_counts}{net})"
 
 
-def _row(target: str, compiler: str, table, m: Measured, count: int) -> dict:
+def _row(target: str, compiler: str, cam: str, table, m: Measured, count: int) -> dict:
     met = m.ratio_inside <= LIMITS["inside"] and m.ratio_wide <= LIMITS["wide"] and m.checksums_match
-    text = (f"instructions per lookup, {target} ({compiler}), {_describe(table)}: runtime {m.runtime_inside:.1f} "
+    text = (f"instructions per lookup, {target} ({compiler}), {_describe(cam, table)}: runtime {m.runtime_inside:.1f} "
             f"inside the period / {m.runtime_wide:.1f} any int64, minimal {m.minimal:.1f}: "
             f"{m.ratio_inside:.2f}x / {m.ratio_wide:.2f}x (limits {LIMITS['inside']:g}x / {LIMITS['wide']:g}x): "
             f"{'met' if met else 'MISSED'}{'' if m.checksums_match else '; CHECKSUMS DIFFER'}")
-    return {"kind": "note", "topic": "instructions", "target": target, "compiler": compiler,
+    return {"kind": "note", "topic": "instructions", "target": target, "compiler": compiler, "cam": cam,
             "interp": DEGREES[table.format.degree], "points": table.points, "step_counts": table.format.step_counts,
-            "queries": count, "instructions_runtime_inside": m.runtime_inside,
+            "net_stroke": str(table.format.net_stroke), "queries": count,
+            "instructions_runtime_inside": m.runtime_inside,
             "instructions_runtime_wide": m.runtime_wide, "instructions_minimal": m.minimal,
             "ratio_inside": m.ratio_inside, "ratio_wide": m.ratio_wide, "limit_inside": LIMITS["inside"],
             "limit_wide": LIMITS["wide"], "checksums_match": m.checksums_match, "met": met, "text": text}  # fmt: skip
@@ -323,46 +438,56 @@ def instruction_rows(directory: Path, quick: bool) -> list[dict]:
     count = 200 if quick else 1000
     rows = []
     tables = bench_tables(quick)
+    shared = directory / "shared"
+    shared.mkdir()
     why = host_note()
     if why:
         rows.append({"kind": "note", "topic": "instructions", "target": "x86-64",
                      "text": f"instructions per lookup on x86-64 not measured: {why}"})
     else:
-        for table in tables:
-            work = directory / f"host_{table.format.degree}_{table.points}"
+        for k, (cam, table) in enumerate(tables):
+            work = directory / f"host_{k}"
             work.mkdir()
             try:
-                rows.append(_row("x86-64", "cc -O2, callgrind", table, host_counts(work, table.to_bytes(), table.format, count), count))
+                measured = host_counts(work, table.to_bytes(), table.format, count, shared=shared)
+                rows.append(_row("x86-64", "cc -O2, callgrind", cam, table, measured, count))
             except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
                 rows.append({"kind": "note", "topic": "instructions", "target": "x86-64",
-                             "text": f"instructions per lookup on x86-64, {_describe(table)}: not measured: {exc}"})
+                             "text": f"instructions per lookup on x86-64, {_describe(cam, table)}: not measured: {exc}"})
     why = m4_note()
     if why:
         rows.append({"kind": "note", "topic": "cortex-m4", "target": "cortex-m4",
                      "text": f"Cortex-M4 figures (size, stack, instructions) not measured: {why}"})
         return rows
-    for table in tables:
-        work = directory / f"m4_{table.format.degree}_{table.points}"
+    for k, (cam, table) in enumerate(tables):
+        work = directory / f"m4_{k}"
         work.mkdir()
         try:
-            rows.append(_row("cortex-m4", f"arm-none-eabi-gcc -O2, QEMU {TARGETS['cortex-m4'].name} trace", table,
-                             m4_counts(work, table.to_bytes(), table.format, count), count))
+            measured = m4_counts(work, table.to_bytes(), table.format, count, shared=shared)
+            rows.append(_row("cortex-m4", f"arm-none-eabi-gcc -O2, QEMU {M4_MACHINE} trace", cam, table, measured, count))
         except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
             rows.append({"kind": "note", "topic": "instructions", "target": "cortex-m4",
-                         "text": f"instructions per lookup on Cortex-M4, {_describe(table)}: not measured: {exc}"})
+                         "text": f"instructions per lookup on Cortex-M4, {_describe(cam, table)}: not measured: {exc}"})
     work = directory / "m4_footprint"
     work.mkdir()
     try:
-        blobs = {t.format.degree: t.to_bytes() for t in tables if t.points == 145}
-        for f in m4_footprint(work, blobs):
+        blobs = {f"{cam} {DEGREES[t.format.degree]}{', net stroke' if t.format.net_stroke_num else ''}":
+                 t.to_bytes() for cam, t in tables if t.points == 145 or t.format.net_stroke_num}
+        for f in m4_footprint(work, blobs, shared=shared):
             stack = f["stack_per_call"]
-            worst = {api: max(stack[d][api] for d in stack) for api in ("position", "slope", "lookup")}
+            apis = ("position", "slope", "lookup")
+            worst = {api: max(stack[d][api] for d in stack if "net stroke" not in d) for api in apis}
+            nets = [d for d in stack if "net stroke" in d]
+            net = {api: max(stack[d][api] for d in nets) for api in apis} if nets else None
             text = (f"Cortex-M4 {f['opt']}: ecam_table.o flash {f['flash_bytes']} B, RAM {f['ram_bytes']} B (static); "
                     f"sizeof(ecam_table) {f['table_bytes']} B, ecam_table_pair {f['pair_bytes']} B; stack per call "
-                    f"(measured) position {worst['position']} B, slope {worst['slope']} B, lookup {worst['lookup']} B; "
-                    f"largest frame {f['largest_frame']} B (-fstack-usage)")
+                    f"(measured) position {worst['position']} B, slope {worst['slope']} B, lookup {worst['lookup']} B"
+                    + ("" if net is None else
+                       f" ({net['position']} B, {net['slope']} B, {net['lookup']} B with a net stroke)")
+                    + f"; init {max(v['init'] for v in stack.values())} B; "
+                    f"largest frame {f['largest_frame']} B (-fstack-usage)")  # fmt: skip
             rows.append({"kind": "note", "topic": "cortex-m4", "target": "cortex-m4", **f,
-                         "stack_per_call_max": worst, "text": text})
+                         "stack_per_call_max": worst, "stack_per_call_max_net_stroke": net, "text": text})
     except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
         rows.append({"kind": "note", "topic": "cortex-m4", "target": "cortex-m4",
                      "text": f"Cortex-M4 footprint not measured: {exc}"})

@@ -80,19 +80,37 @@ def _instruction_lines(rows: list[dict]) -> list[str]:
     counted = [r for r in rows if r.get("kind") == "note" and r.get("topic") in _COUNT_TOPICS]
     if not counted:
         return []
-    lines = ["", "instructions per lookup (exact counts: callgrind on x86-64, a QEMU trace on Cortex-M4; the runtime's",
-             "ecam_table_position against ecam_minimal.c, the same table's lookup hand-written with its format as",
-             "constants; inside = masters in [0, M), wide = any int64; limits 2x inside, 3x wide):"]  # fmt: skip
-    head = f"  {'target':10s} {'interp':8s} {'points':>6s} {'h':>6s} | {'inside':>7s} {'wide':>7s} {'minimal':>7s} | {'in/min':>6s} {'wide/min':>8s}  verdict"
+    lines = ["", "instructions per lookup: exact counts (callgrind on x86-64, a QEMU trace on Cortex-M4) of one",
+             "ecam_table_position call against ecam_minimal.c, the same table's lookup hand-written with its",
+             "format as constants and the master already in [0, M); inside = masters in [0, M), wide = any",
+             "int64 (each one wraps); limits 2x inside, 3x wide:"]  # fmt: skip
+    head = (f"  {'target':9s} {'cam':16s} {'interp':7s} {'points':>6s} {'h':>6s} {'net':>8s} | {'inside':>6s} "
+            f"{'wide':>6s} {'minimal':>7s} | {'in/min':>6s} {'wide/min':>8s}  verdict")
     table = [r for r in counted if "instructions_minimal" in r]
     if table:
         lines += [head, "  " + "-" * (len(head) - 2)]
     for r in table:
         verdict = "met" if r["met"] else "MISSED" + ("" if r["checksums_match"] else " (checksums differ)")
-        lines.append(f"  {r['target']:10s} {r['interp']:8s} {r['points']:6d} {r['step_counts']:6d} | "
-                     f"{r['instructions_runtime_inside']:7.1f} {r['instructions_runtime_wide']:7.1f} "
-                     f"{r['instructions_minimal']:7.1f} | {r['ratio_inside']:5.2f}x {r['ratio_wide']:7.2f}x  {verdict}")
-    lines += [f"  {r['text']}" for r in counted if "instructions_minimal" not in r]
+        net = r.get("net_stroke", "0")
+        lines.append(f"  {r['target']:9s} {r.get('cam', ''):16s} {r['interp']:7s} {r['points']:6d} {r['step_counts']:6d} "
+                     f"{'-' if net == '0' else net:>8s} | {r['instructions_runtime_inside']:6.1f} "
+                     f"{r['instructions_runtime_wide']:6.1f} {r['instructions_minimal']:7.1f} | "
+                     f"{r['ratio_inside']:5.2f}x {r['ratio_wide']:7.2f}x  {verdict}")
+    footprint = [r for r in counted if "flash_bytes" in r]
+    if footprint:
+        lines += ["", "Cortex-M4 footprint of ecam_table.o (flash, static RAM, struct sizes) and stack per call",
+                  "(measured by painting the stack under QEMU, masters inside and outside the period):"]
+        head = (f"  {'opt':4s} {'flash':>8s} {'RAM':>5s} {'table':>6s} {'pair':>6s} | {'position':>8s} {'slope':>6s} "
+                f"{'lookup':>7s} {'init':>6s} | with a net stroke: position, lookup")
+        lines += [head, "  " + "-" * (len(head) - 2)]
+        for r in footprint:
+            worst, net = r["stack_per_call_max"], r.get("stack_per_call_max_net_stroke") or {}
+            init = max(v["init"] for v in r["stack_per_call"].values())
+            with_net = "-" if net.get("position") is None else f"{net['position']} B, {net['lookup']} B"
+            lines.append(f"  {r['opt']:4s} {r['flash_bytes']:6d} B {r['ram_bytes']:3d} B {r['table_bytes']:4d} B "
+                         f"{r['pair_bytes']:4d} B | {worst['position']:6d} B {worst['slope']:4d} B {worst['lookup']:5d} B "
+                         f"{init:4d} B | {with_net}")
+    lines += [f"  {r['text']}" for r in counted if "instructions_minimal" not in r and "flash_bytes" not in r]
     return lines
 
 

@@ -13,11 +13,19 @@ frame it sends carries the bus's own tag in the ``channel`` field of the packed 
 received frame with that tag is the echo. It is registered with python-can as the interface
 ``ecam_udp``, so any python-can program, an unmodified canopen master included, selects it with
 ``interface="ecam_udp"``.
+
+It also survives a datagram that is not a frame. python-can's ``udp_multicast`` raises
+``CanOperationError`` from ``recv`` for anything on the group's port that does not unpack into a
+valid message (another program's datagram, a truncated one), and a node whose receive loop
+stops at the first error goes deaf for good. Here such a datagram is dropped (counted in
+:attr:`EchoFreeUdpMulticastBus.dropped`, logged once); only a failure of the socket itself
+is raised.
 """
 
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 import time
 from copy import copy
@@ -26,6 +34,8 @@ import can
 from can.interfaces.udp_multicast import UdpMulticastBus
 
 __all__ = ["EchoFreeUdpMulticastBus", "DEFAULT_GROUP"]
+
+logger = logging.getLogger(__name__)
 
 # IPv4: routable on a loopback-only network namespace with one route (224.0.0.0/4 dev lo), where
 # python-can's IPv6 default group needs more set-up.
@@ -44,6 +54,8 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
         super().__init__(channel, *args, **kwargs)
         self._tag = f"ecam-udp:{os.getpid()}:{next(_BUS_NUMBERS)}:{id(self):x}"
         self.channel_info = f"{channel} (echo-free)"
+        #: Datagrams on the group's port that were not frames, dropped.
+        self.dropped = 0
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         tagged = copy(msg)
@@ -54,8 +66,24 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             remaining = None if deadline is None else max(0.0, deadline - time.monotonic())
-            msg, filtered = super()._recv_internal(remaining)
-            if msg is None or msg.channel != self._tag:
-                return msg, filtered
+            try:
+                msg, filtered = super()._recv_internal(remaining)
+            except can.CanOperationError as exc:
+                # The socket failed (its OSError is the cause): raise. Otherwise the datagram
+                # did not unpack into a frame: drop it and go on listening.
+                if exc.__cause__ is None or isinstance(exc.__cause__, OSError):
+                    raise
+                self._drop(exc.__cause__)
+                msg, filtered = None, False
+            else:
+                if msg is None or msg.channel != self._tag:
+                    return msg, filtered
             if deadline is not None and remaining == 0.0:
                 return None, False
+
+    def _drop(self, reason: BaseException) -> None:
+        self.dropped += 1
+        if self.dropped == 1:
+            logger.warning("%s: dropped a datagram that is not a python-can frame (%s: %s); "
+                           "further ones are counted, not logged", self.channel_info,
+                           type(reason).__name__, reason)

@@ -4,7 +4,12 @@ Run by tests/test_drive_network.py inside a private network namespace that has o
 no frame leaves the machine. Prints one ``step: ...`` line per stage reached and ``ok`` at the
 end; exits non-zero at the first stage that fails.
 
-    python3 tests/netns_master.py NODE_ID
+    python3 tests/netns_master.py NODE_ID [ecam_udp | udp_multicast]
+
+The master connects with ``interface="ecam_udp"`` (python-can's udp_multicast without the
+sender's own frames; no frame filters), or with plain ``udp_multicast`` and the receive filters
+the README gives for it (a master on plain udp_multicast hears its own RPDOs back, and canopen
+then stops sending the controlword): the second run stops after streaming.
 """
 
 import signal
@@ -18,6 +23,7 @@ from canopen.profiles.p402 import BaseNode402
 from hil_sim.drive import EDS_PATH
 
 CSP = "CYCLIC SYNCHRONOUS POSITION"
+GROUP = "239.74.163.2"  # the drive's default group (python-can's IPv4 default)
 SYNC_PERIOD_S = 0.002
 FOLLOWING_ERROR_EMCY = 0x8611  # CiA 402: following error
 
@@ -26,9 +32,19 @@ def step(text):
     print(f"step: {text}", flush=True)
 
 
-def main(node_id: int) -> int:
+def master_filters(node_id: int) -> list[dict]:
+    """What a master on plain udp_multicast receives: the drive's EMCY, TPDOs, SDO responses and
+    heartbeat, never the COB-IDs it sends itself (NMT, SYNC, RPDOs, SDO requests)."""
+    return [{"can_id": function + node_id, "can_mask": 0x7FF}
+            for function in (0x080, 0x180, 0x280, 0x380, 0x480, 0x580, 0x700)]
+
+
+def main(node_id: int, interface: str = "ecam_udp") -> int:
     network = canopen.Network()
-    network.connect(interface="ecam_udp")  # the master's own bus: no frame filters
+    if interface == "ecam_udp":
+        network.connect(interface="ecam_udp")  # the master's own bus: no frame filters
+    else:
+        network.connect(interface="udp_multicast", channel=GROUP, can_filters=master_filters(node_id))
     drive = subprocess.Popen([sys.executable, "-m", "ecam.app", "drive", "--interface", "udp_multicast",
                               "--node-id", str(node_id)], stdout=subprocess.PIPE, text=True)
     try:
@@ -61,50 +77,8 @@ def main(node_id: int) -> int:
         actual = node.tpdo_values.get(0x6064)
         step(f"streamed 200 targets, position by TPDO {actual}")
         assert actual is not None and abs(actual - (position + 20 * 199)) < 1000, actual
-
-        node.emcy.reset()
-        target_map[0x607A].raw = position + 2**29  # far beyond the following-error window
-        target_map.transmit()
-        emcy = node.emcy.wait(FOLLOWING_ERROR_EMCY, timeout=5.0)
-        assert emcy is not None, "no following-error EMCY"
-        # CiA 402: FAULT REACTION ACTIVE passes to FAULT by itself once the reaction is done
-        # (transition 14); a fault reset is accepted in FAULT only.
-        deadline = time.monotonic() + 2.0
-        statusword = node.sdo[0x6041].raw
-        while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
-            time.sleep(SYNC_PERIOD_S)
-            statusword = node.sdo[0x6041].raw
-        assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} is not FAULT"
-        time.sleep(5 * SYNC_PERIOD_S)  # the statusword TPDO catches up
-        step(f"emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
-        position = node.sdo[0x6064].raw
-        target_map[0x607A].raw = position
-        target_map.transmit()
-        node.reset_from_fault()
-        node.state = "OPERATION ENABLED"
-        position = node.sdo[0x6064].raw  # re-enabled where the axis is: stream on from there
-        for k in range(50):
-            target_map[0x607A].raw = position + 20 * k
-            target_map.transmit()
-            time.sleep(SYNC_PERIOD_S)
-        time.sleep(10 * SYNC_PERIOD_S)
-        statusword = node.sdo[0x6041].raw
-        assert statusword & 0x6F == 0x27, f"statusword 0x{statusword:04X} after re-enable"
-        step(f"fault reset and re-enabled, statusword 0x{statusword:04X}, following again")
-
-        # SYNC supervision: 0x1006 arms it, 0x6007 = 1 (fault) is the reaction to a lost SYNC.
-        node.sdo[0x1006].raw = int(SYNC_PERIOD_S * 1e6)
-        node.emcy.reset()
-        network.sync.stop()
-        emcy = node.emcy.wait(0x8100, timeout=2.0)
-        assert emcy is not None, "no EMCY when the SYNC stopped"
-        deadline = time.monotonic() + 2.0
-        statusword = node.sdo[0x6041].raw
-        while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
-            time.sleep(SYNC_PERIOD_S)
-            statusword = node.sdo[0x6041].raw
-        assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} after the SYNC stopped"
-        step(f"sync lost: emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
+        if interface == "ecam_udp":
+            fault_reset_and_sync_loss(network, node, target_map)
 
         node.nmt.state = "STOPPED"
         time.sleep(0.2)
@@ -124,6 +98,54 @@ def main(node_id: int) -> int:
     return drive.returncode
 
 
+def fault_reset_and_sync_loss(network, node, target_map) -> None:
+    """A following-error fault with its EMCY, fault reset and re-enable, then the SYNC stops."""
+    position = node.sdo[0x6064].raw
+    node.emcy.reset()
+    target_map[0x607A].raw = position + 2**29  # far beyond the following-error window
+    target_map.transmit()
+    emcy = node.emcy.wait(FOLLOWING_ERROR_EMCY, timeout=5.0)
+    assert emcy is not None, "no following-error EMCY"
+    # CiA 402: FAULT REACTION ACTIVE passes to FAULT by itself once the reaction is done
+    # (transition 14); a fault reset is accepted in FAULT only.
+    deadline = time.monotonic() + 2.0
+    statusword = node.sdo[0x6041].raw
+    while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
+        time.sleep(SYNC_PERIOD_S)
+        statusword = node.sdo[0x6041].raw
+    assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} is not FAULT"
+    time.sleep(5 * SYNC_PERIOD_S)  # the statusword TPDO catches up
+    step(f"emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
+    position = node.sdo[0x6064].raw
+    target_map[0x607A].raw = position
+    target_map.transmit()
+    node.reset_from_fault()
+    node.state = "OPERATION ENABLED"
+    position = node.sdo[0x6064].raw  # re-enabled where the axis is: stream on from there
+    for k in range(50):
+        target_map[0x607A].raw = position + 20 * k
+        target_map.transmit()
+        time.sleep(SYNC_PERIOD_S)
+    time.sleep(10 * SYNC_PERIOD_S)
+    statusword = node.sdo[0x6041].raw
+    assert statusword & 0x6F == 0x27, f"statusword 0x{statusword:04X} after re-enable"
+    step(f"fault reset and re-enabled, statusword 0x{statusword:04X}, following again")
+
+    # SYNC supervision: 0x1006 arms it, 0x6007 = 1 (fault) is the reaction to a lost SYNC.
+    node.sdo[0x1006].raw = int(SYNC_PERIOD_S * 1e6)
+    node.emcy.reset()
+    network.sync.stop()
+    emcy = node.emcy.wait(0x8100, timeout=2.0)
+    assert emcy is not None, "no EMCY when the SYNC stopped"
+    deadline = time.monotonic() + 2.0
+    statusword = node.sdo[0x6041].raw
+    while statusword & 0x4F != 0x08 and time.monotonic() < deadline:
+        time.sleep(SYNC_PERIOD_S)
+        statusword = node.sdo[0x6041].raw
+    assert statusword & 0x4F == 0x08, f"statusword 0x{statusword:04X} after the SYNC stopped"
+    step(f"sync lost: emcy 0x{emcy.code:04X}, statusword 0x{statusword:04X} (fault)")
+
+
 def _map_with(maps, index):
     for pdo_map in maps.values():
         if any(var.index == index for var in pdo_map.map):
@@ -132,4 +154,4 @@ def _map_with(maps, index):
 
 
 if __name__ == "__main__":
-    sys.exit(main(int(sys.argv[1]) if len(sys.argv) > 1 else 3))
+    sys.exit(main(int(sys.argv[1]) if len(sys.argv) > 1 else 3, *sys.argv[2:3]))

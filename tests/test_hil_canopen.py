@@ -438,12 +438,12 @@ def test_drive_command_serves_a_canopen_master_until_stopped(scene):
     from pathlib import Path
 
     from ecam.app.cli import add_drive_arguments
-    from ecam.app.rig_commands import drive_command
+    from ecam.app.drive_command import drive_command
 
     channel = f"test-hil-cli-{next(_channels)}"
     parser = argparse.ArgumentParser()
     add_drive_arguments(parser)
-    argv = ["--channel", channel, "--node-id", "5"]
+    argv = ["--interface", "virtual", "--channel", channel, "--node-id", "5"]
     if scene:
         argv += ["--scene", str(Path(__file__).resolve().parent.parent / "hil_sim" / "scenes" / scene)]
     args = parser.parse_args(argv)

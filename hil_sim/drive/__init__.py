@@ -25,7 +25,10 @@ protocol service:
   verified with :meth:`ecam.CamTable.from_bytes` into a pending slot and activated atomically by
   writing 1 to 0x2001:01; a bad, truncated or aborted download is refused and the running table
   keeps running. With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003;
-* :mod:`~hil_sim.drive.runner`: when frames are handled, and the bus;
+* :mod:`~hil_sim.drive.runner`: when frames are handled, and the bus; the one door every
+  received frame passes: 29-bit, remote and error frames stay out, and an exception that
+  escapes a handler (a defect) is logged and faults the drive with EMCY 0x6100 instead of
+  leaving it;
 * :mod:`~hil_sim.drive.virtual_drive`: :class:`VirtualDrive`, which composes them and runs the
   **SYNC** cycle: each SYNC latches the synchronous RPDOs, advances the drive by one
   interpolation period (0x60C2), runs :meth:`ServoAxis.cycle`, then sends the synchronous TPDOs.
@@ -48,8 +51,8 @@ from hil_sim.drive.cam_slot import (
     CAM_STATUS_LAST_DOWNLOAD_REFUSED, CAM_STATUS_PENDING,
 )
 from hil_sim.drive.emcy import (
-    EMCY_FOLLOWING_ERROR, EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION, ERROR_REGISTER_GENERIC,
-    ERROR_REGISTER_PROFILE,
+    EMCY_COMMUNICATION, EMCY_FOLLOWING_ERROR, EMCY_INTERNAL_SOFTWARE, EMCY_PDO_LENGTH,
+    ERROR_REGISTER_COMMUNICATION, ERROR_REGISTER_GENERIC, ERROR_REGISTER_PROFILE,
 )
 from hil_sim.drive.objects import (
     EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od, saturate_int32, wrap_int32,
@@ -65,8 +68,8 @@ __all__ = [
     "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_COMMAND_SPECIFIER", "ABORT_DEVICE_STATE",
     "ABORT_INVALID_VALUE", "ABORT_PDO_LENGTH", "ABORT_TIMEOUT", "ABORT_TOGGLE",
     "ABORT_VALUE_TOO_HIGH", "ABORT_VALUE_TOO_LOW", "SDO_TIMEOUT_S", "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
-    "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_FOLLOWING_ERROR",
-    "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
+    "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_COMMUNICATION",
+    "EMCY_FOLLOWING_ERROR", "EMCY_INTERNAL_SOFTWARE", "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
     "ERROR_REGISTER_PROFILE", "PROCESS_OBJECTS", "VirtualDrive", "interpolation_period_s",
     "load_od", "saturate_int32", "wrap_int32",
 ]

@@ -145,7 +145,9 @@ class CamSlot:
         else:
             master = previous + wrap_int32(raw - wrap_int32(previous))
         self.master_unwrapped = master
-        # two scalar lookups take the table's pure-integer path (no numpy overhead per cycle)
-        _, slope = self.active_table.lookup((previous + master) // 2, with_slope=True)
+        # The velocity offset belongs to the target's time, as a controller's does: the cam's
+        # slope there times the master speed of the last step (a scalar lookup takes the
+        # table's pure-integer path: no numpy overhead per cycle).
+        target, slope = self.active_table.lookup(master, with_slope=True)
         velocity = slope * (master - previous) / (_SLOPE_ONE * cycle_s)
-        return self.active_table.lookup(master), velocity
+        return target, velocity

@@ -11,6 +11,9 @@ from hil_sim.drive.objects import CAN_ID_MASK, COB_ID_EMCY
 EMCY_NO_ERROR = 0x0000  # error reset
 EMCY_FOLLOWING_ERROR = 0x8611
 EMCY_PDO_LENGTH = 0x8210
+# CiA 301, emergency error codes: 6100 internal software. An exception escaped one of the drive's
+# handlers (a defect of the drive): the drive faults rather than run on in an unknown state.
+EMCY_INTERNAL_SOFTWARE = 0x6100
 # CiA 301, emergency error codes: 81xx communication. The SYNC stopped arriving.
 EMCY_COMMUNICATION = 0x8100
 ERROR_REGISTER_GENERIC = 0x01

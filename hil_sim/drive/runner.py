@@ -1,5 +1,13 @@
 """When the drive handles its frames: on call, in lock-step with the rig, or in a thread of its
-own for an external master; and the bus it handles them on."""
+own for an external master; and the bus it handles them on.
+
+Both ways hand a frame to the drive's handlers through :meth:`Runner.handle`, the one place
+where a frame from the bus enters the drive. It keeps out what a CANopen node does not take
+(error frames, remote frames, 29-bit identifiers: CiA 301 runs on 11-bit CAN-IDs, and a 29-bit
+0x00000601 is not the SDO request 0x601), and it is the last line of defence: an exception that
+escapes a handler (a defect of the drive, never the frame's doing: each service answers bad
+frames itself) is logged and reported to ``on_defect``, and the drive goes on with the next frame.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +15,6 @@ import logging
 import threading
 
 import can
-
-from hil_sim.bus import pump
 
 logger = logging.getLogger(__name__)
 
@@ -31,28 +37,60 @@ class Runner:
         Called after every frame or receive time-out in the thread (the heartbeat).
     name : str
         Name of the thread.
+    on_defect : callable, optional
+        ``on_defect(description)`` after an exception escaped a handler (logged already).
     """
 
-    def __init__(self, bus: can.BusABC, own_bus: bool, network, on_idle, name: str) -> None:
+    def __init__(self, bus: can.BusABC, own_bus: bool, network, on_idle, name: str,
+                 on_defect=None) -> None:
         self.bus = bus
         self.own_bus = own_bus
         self.network = network
         self.on_idle = on_idle
         self.name = name
+        self.on_defect = on_defect
         self.lock = threading.RLock()
         self.thread: threading.Thread | None = None
         self.running = False
+        #: The bus error that ended the thread of :meth:`start` (None while it serves).
+        self.failure: BaseException | None = None
+
+    def handle(self, msg: can.Message) -> None:
+        """Hand one received frame to the network's handlers; nothing escapes."""
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            return
+        try:
+            self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+        except Exception:  # noqa: BLE001 - a defect of the drive must not stop it
+            self._defect(f"frame 0x{msg.arbitration_id:03X} {bytes(msg.data).hex(' ')}")
+
+    def _defect(self, what: str) -> None:
+        logger.exception("drive defect while handling %s", what)
+        if self.on_defect is not None:
+            try:
+                self.on_defect(what)
+            except Exception:  # noqa: BLE001 - the report of a defect must not stop it either
+                logger.exception("drive defect while reporting a defect")
 
     def process(self) -> int:
         """Handle every frame waiting on the bus, in order (lock-step use); return the count."""
+        count = 0
+        recv = self.bus.recv
+        handle = self.handle
         with self.lock:
-            return pump(self.bus, self.network)
+            while True:
+                msg = recv(timeout=0)
+                if msg is None:
+                    return count
+                count += 1
+                handle(msg)
 
     def start(self, boot) -> None:
         """Call ``boot`` and handle frames in a thread until :meth:`stop`."""
         if self.thread is not None:
             raise RuntimeError("the drive is already running")
         self.running = True
+        self.failure = None
         with self.lock:
             boot()
         self.thread = threading.Thread(target=self._serve, name=self.name, daemon=True)
@@ -62,15 +100,18 @@ class Runner:
         while self.running:
             try:
                 msg = self.bus.recv(timeout=0.01)
-            except can.CanError:
+            except (can.CanError, OSError) as exc:  # the bus itself failed: nothing to serve
+                if self.running:  # not the shutdown of stop(): the owner reads it (one report)
+                    self.failure = exc
+                    logger.info("%s: the bus failed: %s", self.name, exc)
                 break
             with self.lock:
-                if msg is not None and not (msg.is_error_frame or msg.is_remote_frame):
-                    try:
-                        self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
-                    except Exception:  # a bad frame must not stop the drive
-                        logger.exception("frame 0x%03X", msg.arbitration_id)
-                self.on_idle()
+                if msg is not None:
+                    self.handle(msg)
+                try:
+                    self.on_idle()
+                except Exception:  # noqa: BLE001
+                    self._defect("the drive's timers")
 
     def stop(self) -> None:
         """Stop the thread of :meth:`start` and release the bus if the drive opened it."""

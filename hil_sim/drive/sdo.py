@@ -11,8 +11,10 @@ behaviour of a real server on every frame a client may send:
 * every request gets one answer at most: the response, or an abort (0x80) naming the object of
   the transfer it ends, or 0000:00 where the frame named none (never an earlier transfer's);
 * a frame too short for what its command specifier announces is answered as lely-core's server
-  answers it (``src/co/ssdo.c``: no command byte or a missing size/segment field 0x05040001,
-  an initiate frame without a whole index 0x06020000, without a sub-index 0x06090011);
+  answers it (``src/co/ssdo.c``: no command byte or a segment shorter than its size field
+  0x05040001, an initiate frame without a whole index 0x06020000, without a sub-index
+  0x06090011); a segmented download initiate that announces a size and does not carry it is
+  aborted with 0x05040001 too (lely-core reads the missing bytes as zeros);
   CANopenNode instead ignores every frame whose length is not 8 (``301/CO_SDOserver.c``), which
   leaves the client to time out;
 * a segment request without a transfer in progress, an initiate request during one and an

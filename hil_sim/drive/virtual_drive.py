@@ -15,9 +15,12 @@ from hil_sim.drive.cia402 import (
     CYCLIC_SYNCHRONOUS_POSITION, ENERGIZED, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
     OPERATIONAL, PRE_OPERATIONAL, QUICK_STOP_ACTIVE, SWITCH_ON_DISABLED,
 )
-from hil_sim.control import Gains, ServoAxis
+from hil_sim.control import AxisSetup, Gains, ServoAxis
 from hil_sim.drive.cam_slot import NO_ERROR_MESSAGE, CamSlot
-from hil_sim.drive.emcy import EMCY_COMMUNICATION, ERROR_REGISTER_COMMUNICATION, EmcyProducer
+from hil_sim.drive.emcy import (
+    EMCY_COMMUNICATION, EMCY_INTERNAL_SOFTWARE, ERROR_REGISTER_COMMUNICATION,
+    ERROR_REGISTER_GENERIC, EmcyProducer,
+)
 from hil_sim.drive.nmt import NmtSlave
 from hil_sim.drive.objects import (
     ABORT_CONNECTION_OPTION_CODE, APPLICATION_AREA, CAM_COMMAND, CAM_LAST_ERROR_MESSAGE, CAM_MODE, CAM_TABLE_DOWNLOAD,
@@ -81,6 +84,8 @@ class VirtualDrive:
         Plant model, see :class:`hil_sim.control.ServoAxis`.
     excitation_hz : float
         Highest significant cam harmonic, for the "auto" model choice.
+    plant_effects, drive_effects, feedforward
+        The axis' effects and feed-forward source, see :class:`hil_sim.control.ServoAxis`.
     initial_counts : int
         Position at power-on [counts].
     heartbeat_ms : int, optional
@@ -92,7 +97,8 @@ class VirtualDrive:
     def __init__(self, channel: str = "ecam", node_id: int = 1, bus: can.BusABC | None = None,
                  *, mechanics=None, gains=None, substeps: int = 8,
                  counts_per_motor_rad: float | None = None, model: str = "auto",
-                 excitation_hz: float = 0.0, initial_counts: int = 0,
+                 excitation_hz: float = 0.0, plant_effects=None, drive_effects=None,
+                 feedforward: str = "target", initial_counts: int = 0,
                  heartbeat_ms: int | None = None, eds=None) -> None:
         if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
             raise InputError(f"node_id {node_id!r} should be an integer in 1..127")
@@ -100,10 +106,10 @@ class VirtualDrive:
         self.mechanics = mechanics if mechanics is not None else _default_mechanics()
         self.gains = gains if gains is not None else Gains.from_mechanics(
             self.mechanics, velocity_feedforward=0.0)
-        self.substeps = substeps
-        self.counts_per_motor_rad = counts_per_motor_rad
-        self.model = model
-        self.excitation_hz = excitation_hz
+        self.axis_setup = AxisSetup(
+            self.mechanics, self.gains, substeps=substeps, counts_per_motor_rad=counts_per_motor_rad,
+            model=model, excitation_hz=excitation_hz, plant_effects=plant_effects,
+            drive_effects=drive_effects, feedforward=feedforward)
         self._initial_counts = int(initial_counts)
         self._heartbeat_ms_override = heartbeat_ms
         self.time_s = 0.0  # drive time: interpolation periods run so far
@@ -124,8 +130,9 @@ class VirtualDrive:
         self.objects = StoredObjects(self.node)
         self.cam = CamSlot(self.values)
         self.nmt = NmtSlave(self.network, node_id, self._now, self._reset, self._nmt_entered)
+        self.defects = 0  # exceptions that escaped a handler (each logged, each a fault)
         self.runner = Runner(bus, own_bus, self.network, self._on_idle,
-                             f"VirtualDrive-{node_id}")
+                             f"VirtualDrive-{node_id}", on_defect=self._on_defect)
         self.emcy = EmcyProducer(self.network, self.objects, self.nmt)
         self.state_machine = PowerStateMachine(
             self.values, self.emcy, lambda: self.axis.position_counts, self._on_enable)
@@ -157,6 +164,11 @@ class VirtualDrive:
     def bus(self) -> can.BusABC | None:
         """The drive's bus (None once :meth:`close` released a bus the drive opened)."""
         return self.runner.bus
+
+    @property
+    def failure(self) -> BaseException | None:
+        """The bus error that stopped the thread of :meth:`start` (None while it serves)."""
+        return self.runner.failure
 
     @property
     def state(self) -> str:
@@ -309,16 +321,10 @@ class VirtualDrive:
 
     def _make_axis(self, position_counts: int, cycle_s: float | None = None) -> None:
         """(Re)build the servo axis at ``position_counts`` for an interpolation period."""
-        kwargs = {}
-        if self.counts_per_motor_rad is not None:
-            kwargs["counts_per_motor_rad"] = self.counts_per_motor_rad
         if cycle_s is None:
             cycle_s = interpolation_period_s(self.objects.stored(INTERPOLATION_TIME_PERIOD_VALUE),
                                              self.objects.stored(INTERPOLATION_TIME_INDEX))
-        self.axis = ServoAxis(self.mechanics, self.gains, cycle_s=cycle_s,
-                              substeps=self.substeps, model=self.model,
-                              excitation_hz=self.excitation_hz,
-                              initial_counts=int(position_counts), **kwargs)
+        self.axis = self.axis_setup.build(cycle_s, int(position_counts))
         self.values[POSITION_ACTUAL_VALUE] = wrap_int32(self.axis.position_counts)
         self.values[FOLLOWING_ERROR_ACTUAL_VALUE] = 0
 
@@ -327,6 +333,11 @@ class VirtualDrive:
         if self._wall_clock:
             self._last_sync_wall = time.monotonic()
         self.run_cycle(synchronous=True)
+
+    def _on_defect(self, what: str) -> None:
+        """An exception escaped a handler (logged by the runner): fault with EMCY 0x6100."""
+        self.defects += 1
+        self.state_machine.fault(EMCY_INTERNAL_SOFTWARE, ERROR_REGISTER_GENERIC)
 
     def _on_idle(self) -> None:
         self.nmt.service_heartbeat()
@@ -401,15 +412,20 @@ class VirtualDrive:
             following_error = axis.following_error_counts
             values[POSITION_ACTUAL_VALUE] = wrap_int32(axis.position_counts)
             values[FOLLOWING_ERROR_ACTUAL_VALUE] = wrap_int32(following_error)
-            values[VELOCITY_ACTUAL_VALUE] = wrap_int32(
-                round(plant.motor_speed * axis.counts_per_motor_rad))
-            torque = round(plant.torque * 1e6 / values[MOTOR_RATED_TORQUE])
+            # a velocity that leaves INTEGER32 saturates: a wrap would flip its sign
+            values[VELOCITY_ACTUAL_VALUE] = saturate_int32(round(axis.velocity_counts_per_s))
+            torque = round(plant.motor_torque * 1e6 / values[MOTOR_RATED_TORQUE])
             values[TORQUE_ACTUAL_VALUE] = min(max(torque, -32768), 32767)
             state_machine.check_following_error(following_error, self.time_s)
             if state == FAULT_REACTION_ACTIVE:
                 state_machine.reaction_done()  # CiA 402 transition 14: hold, then off, done
         else:
-            values[VELOCITY_ACTUAL_VALUE] = 0
+            # Power stage off: no torque. A spinning load coasts (friction and damping slow it)
+            # and the encoder still reads it: 0x6064 and 0x606C report where it goes.
+            axis.coast()
+            values[POSITION_ACTUAL_VALUE] = wrap_int32(axis.position_counts)
+            values[VELOCITY_ACTUAL_VALUE] = saturate_int32(round(axis.velocity_counts_per_s))
+            values[FOLLOWING_ERROR_ACTUAL_VALUE] = 0
             values[TORQUE_ACTUAL_VALUE] = 0
         self.cycles += 1
         self.time_s = self.cycles * self.cycle_s

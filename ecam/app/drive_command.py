@@ -1,0 +1,149 @@
+"""`ecam drive` (and `hil-sim drive`): the virtual CiA 402 drive as a process of its own, for a
+master under test in another process.
+
+It runs until Ctrl-C, SIGINT or SIGTERM (a service manager, `kill`), then shuts its bus down
+and exits 0. Exit status 2, one line on stderr, for bad input, a transport that cannot be
+opened, or a bus that fails while the drive runs (python-can raised from ``recv``).
+
+A shell starts a background job (`ecam drive ... &` in a script) with SIGINT ignored, as it does
+for every program; the drive keeps that, so in a script stop it with SIGTERM (`kill $pid`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import threading
+
+import can
+
+from ecam.errors import EcamError
+from hil_sim.drive import VirtualDrive
+from hil_sim.rig import drive_for_scene
+from hil_sim.udp_bus import DEFAULT_GROUP, EchoFreeUdpMulticastBus
+
+#: Transports and their default channels. The in-process `virtual` bus reaches only masters in
+#: this process; the others reach other processes. `ecam_udp` is `udp_multicast` without the
+#: sender's own frames (:mod:`hil_sim.udp_bus`); the drive always opens `udp_multicast` that way
+#: (same wire format and groups, so masters on either interface reach it).
+DEFAULT_CHANNELS = {"virtual": "ecam", "udp_multicast": DEFAULT_GROUP, "ecam_udp": DEFAULT_GROUP,
+                    "socketcan": "vcan0"}
+
+#: What a master needs to reach the drive, by transport (printed when the drive starts).
+_REACH = {
+    "virtual": "in-process bus: only a master in this same Python process reaches it; for "
+               "another process use --interface udp_multicast or socketcan",
+    "udp_multicast": "python-can masters connect with interface='ecam_udp'",
+    "ecam_udp": "python-can masters connect with interface='ecam_udp'",
+    "socketcan": "any SocketCAN master on this interface reaches it",
+}
+
+
+def open_drive_bus(interface: str, channel: str | None):
+    """The bus the drive runs on.
+
+    Parameters
+    ----------
+    interface : {"virtual", "udp_multicast", "ecam_udp", "socketcan"}
+    channel : str or None
+        None: the transport's default (:data:`DEFAULT_CHANNELS`).
+
+    Returns
+    -------
+    (can.BusABC or None, str)
+        The bus (None for the in-process virtual bus, which the drive opens itself) and the
+        channel.
+
+    Raises
+    ------
+    EcamError
+        The transport cannot be opened (message names interface, channel and why).
+    """
+    channel = channel or DEFAULT_CHANNELS[interface]
+    if interface == "virtual":
+        return None, channel
+    try:
+        if interface in ("udp_multicast", "ecam_udp"):
+            return EchoFreeUdpMulticastBus(channel=channel), channel
+        return can.Bus(interface=interface, channel=channel), channel
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: {exc}") from None
+
+
+def drive_command(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
+    """Run a virtual drive until Ctrl-C, SIGINT or SIGTERM (or until ``stop`` is set).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``interface``, ``channel``, ``node_id``, ``heartbeat_ms``, ``scene`` (see
+        :func:`ecam.app.cli.add_drive_arguments`).
+    stop : threading.Event, optional
+        Set by the caller to stop the drive (tests run it in a thread).
+
+    Returns
+    -------
+    int
+        0 once stopped.
+
+    Raises
+    ------
+    EcamError
+        The transport cannot be opened, or its bus failed while the drive ran.
+    """
+    bus, channel = open_drive_bus(args.interface, args.channel)
+    try:
+        if args.scene is not None:
+            drive = drive_for_scene(args.scene, channel=channel, bus=bus, node_id=args.node_id,
+                                    heartbeat_ms=args.heartbeat_ms)
+        else:
+            drive = VirtualDrive(channel=channel, node_id=1 if args.node_id is None else args.node_id,
+                                 bus=bus, heartbeat_ms=args.heartbeat_ms)
+    except BaseException:
+        if bus is not None:
+            bus.shutdown()
+        raise
+    stop = stop or threading.Event()
+    restore = _stop_on_signals(stop)
+    print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "
+          f"{channel!r} ({_REACH[args.interface]}); Ctrl-C or SIGTERM stops it", flush=True)
+    try:
+        drive.start()
+        while not stop.wait(0.1):
+            if drive.failure is not None:
+                break
+    except KeyboardInterrupt:
+        pass  # SIGINT before its handler was set, or where none could be set
+    except (can.CanError, OSError) as exc:  # the boot-up could not be sent
+        raise EcamError(f"interface {args.interface!r} channel {channel!r} failed: {exc}") from None
+    finally:
+        drive.stop()
+        if bus is not None:
+            bus.shutdown()
+        restore()
+    if drive.failure is not None:
+        raise EcamError(f"interface {args.interface!r} channel {channel!r} failed while the drive "
+                        f"ran: {drive.failure}")
+    print("virtual drive stopped", flush=True)
+    return 0
+
+
+def _stop_on_signals(stop: threading.Event):
+    """Let SIGTERM (a service manager, `kill`) and SIGINT (Ctrl-C) set ``stop``, so the drive
+    stops between two frames, shuts its bus down and exits 0. A SIGINT the process was started
+    with ignored (a background job of a shell) stays ignored. Returns the function that puts the
+    previous handlers back."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None  # signal handlers can be set from the main thread only
+    previous = {}
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        handler = signal.getsignal(signum)
+        if signum == signal.SIGINT and handler is not signal.default_int_handler:
+            continue  # ignored, or a handler of the caller's: leave it
+        previous[signum] = signal.signal(signum, lambda number, frame: stop.set())
+
+    def restore() -> None:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+    return restore

@@ -3,90 +3,102 @@
 The file fetches nothing: the style sheet is inline, the plots are PNG images inline as
 ``data:`` URLs, and there is no script. It reads top to bottom the way a reviewer asks:
 
-1. the verdict (how many scenes passed, and the failed checks' lines);
-2. a table of the scenes;
-3. per scene, failed scenes first: every check with its value, limit and margin; the plots
-   (load tracking error, coupling torque against its ratings, following error over the
-   master position); the model that ran and why, and the effects (included or left out,
-   and why) where the report lists them; the bus and the faults; master, table and
-   mechanics figures; the scene as run (its TOML, or a table of its fields when a Scene
-   object was run); wall time.
+1. the verdict: how many scenes passed, and every failed check's line (value, limit, by how
+   much, where) or why a scene could not run;
+2. a table of the scenes (verdict, model, the check nearest its limit), linking to
+3. one section per scene, failed and broken scenes first: every check with its value, limit
+   and margin; the plots over the master position (:mod:`hil_sim.rig.plot`: tracking error,
+   following error against the window, coupling and motor torque against their limits, the
+   periods overlaid and the failing sample marked); the model that ran and why, and the
+   effects included or left out and why, where the report lists them; the bus and the
+   faults; master, table and mechanics figures; the scene as run (its TOML, and every field
+   with the defaults filled in). A scene that could not run shows its error and its file.
 
-Everything except wall times is deterministic: the same reports give the same bytes.
-matplotlib is imported only when plots are drawn (inside :func:`plot_png`), with the Agg
-canvas of a bare :class:`matplotlib.figure.Figure` (no pyplot, no global backend switch).
+The same reports give the same bytes (the PNGs too: fixed size and dpi, no metadata). Wall
+times differ from run to run, so they are left out unless asked for (``timing=True``).
 """
 
 from __future__ import annotations
 
 import base64
 import html
-import io
 import math
+import re
 from dataclasses import fields, is_dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ecam.app.junit import scene_label
+from ecam.app.multi import scene_labels
+from ecam.errors import EcamError
 
-__all__ = ["html_report", "plot_png"]
-
-#: Plotted points per curve at most; longer records are reduced to a min/max envelope per
-#: bucket, which keeps every peak (the value a check reads) visible.
-MAX_PLOT_POINTS = 6000
+__all__ = ["html_report"]
 
 _CSS = """
 :root { --pass: #1a7f37; --pass-bg: #dafbe1; --fail: #cf222e; --fail-bg: #ffebe9;
-        --info: #57606a; --line: #d0d7de; --head: #f6f8fa; --text: #1f2328; }
+        --near: #bf8700; --error: #9a6700; --info: #57606a; --line: #d0d7de; --head: #f6f8fa;
+        --text: #1f2328; }
 * { box-sizing: border-box; }
 body { margin: 0; font: 15px/1.45 -apple-system, "Segoe UI", "DejaVu Sans", Helvetica, Arial,
        sans-serif; color: var(--text); background: #fff; }
-main { max-width: 1180px; margin: 0 auto; padding: 20px 28px 40px; }
-h1 { font-size: 26px; margin: 0 0 6px; }
+main { max-width: 1180px; margin: 0 auto; padding: 18px 28px 40px; }
+a { color: #0969da; text-decoration: none; } a:hover { text-decoration: underline; }
+.title { color: var(--info); font-size: 13px; margin: 0 0 8px; }
+h1 { font-size: 26px; margin: 0 0 4px; }
 h2 { font-size: 21px; margin: 0 0 4px; display: flex; align-items: center; gap: 10px; }
 h3 { font-size: 16px; margin: 22px 0 8px; padding-bottom: 3px;
      border-bottom: 1px solid var(--line); }
 code, pre, .mono { font-family: "DejaVu Sans Mono", Menlo, Consolas, monospace; font-size: 13px; }
-.verdict { border-radius: 8px; padding: 16px 20px; margin: 0 0 20px; border: 2px solid; }
+.small { font-size: 12px; }
+.verdict { border-radius: 8px; padding: 14px 20px 12px; margin: 0 0 18px; border: 2px solid; }
 .verdict.pass { background: var(--pass-bg); border-color: var(--pass); }
 .verdict.fail { background: var(--fail-bg); border-color: var(--fail); }
-.verdict h1 { color: inherit; }
 .verdict.pass h1 { color: var(--pass); }
 .verdict.fail h1 { color: var(--fail); }
-.verdict ul { margin: 6px 0 0; padding-left: 20px; }
-.verdict li { margin: 2px 0; }
+.verdict .counts { margin: 0 0 6px; color: var(--info); }
+.verdict ul { margin: 4px 0 0; padding-left: 20px; }
+.verdict li { margin: 3px 0; }
+.verdict li.mono, .verdict li .mono { font-size: 12.5px; }
+.verdict ul ul { list-style: none; padding-left: 4px; margin: 2px 0 4px; }
 .badge { display: inline-block; min-width: 52px; text-align: center; font-size: 12px;
          font-weight: 700; letter-spacing: .04em; padding: 2px 8px; border-radius: 10px;
-         color: #fff; }
+         color: #fff; white-space: nowrap; }
 .badge.pass { background: var(--pass); } .badge.fail { background: var(--fail); }
-.badge.info, .badge.error { background: var(--info); }
-.badge.error { background: #9a6700; }
+.badge.info { background: var(--info); } .badge.error { background: var(--error); }
 table { border-collapse: collapse; width: 100%; margin: 4px 0 8px; }
 th, td { text-align: left; padding: 5px 9px; border-bottom: 1px solid var(--line);
          vertical-align: top; }
 th { background: var(--head); font-weight: 600; font-size: 13px; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+th.num, td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 tr.fail td { background: var(--fail-bg); }
+table.checks td { vertical-align: middle; }
+table.effects td { font-size: 13.5px; }
 .bar { position: relative; width: 90px; height: 10px; background: #eaeef2; border-radius: 5px;
        display: inline-block; vertical-align: middle; margin-right: 8px; overflow: hidden; }
 .bar span { position: absolute; left: 0; top: 0; bottom: 0; border-radius: 5px; }
 .bar span.pass { background: var(--pass); } .bar span.fail { background: var(--fail); }
+.bar span.near { background: var(--near); }
 .margin { white-space: nowrap; }
 td.where { min-width: 260px; font-size: 13.5px; }
 .scene { border-top: 3px solid var(--line); padding-top: 18px; margin-top: 30px; }
 .desc { color: var(--info); margin: 0 0 8px; }
 .failed-lines { background: var(--fail-bg); border-left: 4px solid var(--fail); padding: 8px 12px;
                 margin: 8px 0; white-space: pre-wrap; }
+.bad { color: var(--fail); }
 .grid { display: grid; grid-template-columns: 1fr 1fr; gap: 0 28px; }
-.kv td:first-child { color: var(--info); width: 42%; }
-img.plot { width: 100%; max-width: 1000px; border: 1px solid var(--line); border-radius: 4px; }
+.kv td { font-size: 13.5px; padding: 3px 8px; }
+.kv td:first-child { color: var(--info); width: 45%; }
+img.plot { display: block; width: 100%; max-width: 1100px; height: auto;
+           border: 1px solid var(--line); border-radius: 4px; }
 pre { background: var(--head); border: 1px solid var(--line); border-radius: 6px;
       padding: 10px 12px; overflow: auto; max-height: 420px; margin: 4px 0; }
-details summary { cursor: pointer; font-weight: 600; margin: 18px 0 6px; }
+pre .ln { color: #8c959f; user-select: none; margin-right: 12px; }
+pre.whole { max-height: none; }
+pre .hl { background: #fff8c5; outline: 1px solid #d4a72c; }
+details summary { cursor: pointer; font-weight: 600; margin: 12px 0 6px; }
 .note { color: var(--info); font-size: 13px; }
 footer { color: var(--info); font-size: 12px; margin-top: 36px; }
-@media (max-width: 800px) { .grid { grid-template-columns: 1fr; } }
+@media (max-width: 900px) { .grid { grid-template-columns: 1fr; } }
 """
 
 
@@ -112,8 +124,8 @@ def _anchor(label: str) -> str:
 
 
 def _margin(check) -> tuple[str, float | None]:
-    """(text, bar fraction 0..1) for a check: the share of its limit used, or by how much it
-    is exceeded."""
+    """(text, bar fraction 0..1) for a check: the share of its limit left (the report's
+    margin, 1 - value/limit) and used, or by how much it is exceeded."""
     if check.limit is None:
         return "no limit (information)", None
     if check.value is None:
@@ -123,71 +135,111 @@ def _margin(check) -> tuple[str, float | None]:
         return ("at the zero limit" if check.passed else "above the zero limit"), \
             (0.0 if check.passed else 1.0)
     if check.passed:
-        return f"{100.0 * ratio:.3g} % of the limit", ratio
+        return f"{100.0 * (1.0 - ratio):.3g} % left ({100.0 * ratio:.3g} % used)", ratio
     return f"x{ratio:.3g}, {100.0 * (ratio - 1.0):.3g} % over", 1.0
 
 
+_STANDARD_CHECK_KEYS = {"name", "value", "limit", "passed", "unit", "ratio", "margin",
+                        "detail"}
+
+
+def _check_state(check) -> str:
+    if check.limit is None:
+        return "info"
+    return "pass" if check.passed else "fail"
+
+
 def _checks_table(report) -> str:
+    """Every check: verdict, value, limit, margin (a bar of the limit used) and where."""
     rows = []
     for check in report.checks:
-        if check.limit is None:
-            state = "info"
-        else:
-            state = "pass" if check.passed else "fail"
+        state = _check_state(check)
         text, fraction = _margin(check)
         bar = ""
         if fraction is not None:
             width = max(0.0, min(fraction, 1.0)) * 100.0
-            bar = (f'<span class="bar"><span class="{state}" style="width:{width:.1f}%">'
+            shade = "near" if state == "pass" and fraction >= 0.8 else state
+            bar = (f'<span class="bar"><span class="{shade}" style="width:{width:.1f}%">'
                    f"</span></span>")
         unit = _e(check.unit)
         value_unit = unit if check.value is not None else ""
         limit_unit = unit if check.limit is not None else ""
+        # Fields a newer report adds to a check (a window, a location) are shown as they come.
+        extra = {k: v for k, v in check.to_dict().items() if k not in _STANDARD_CHECK_KEYS}
+        where = _e(check.detail) + "".join(
+            f'<br><span class="note">{_e(str(k).replace("_", " "))}: {_e(_flat(v))}</span>'
+            for k, v in extra.items() if v not in (None, "", [], {}))
         rows.append(
-            f'<tr class="{state}" title="{_e(check.line())}">'
+            f'<tr class="{state}">'
             f'<td><span class="badge {state}">{state.upper()}</span></td>'
             f"<td><code>{_e(check.name)}</code></td>"
             f'<td class="num">{_e(_num(check.value))} {value_unit}</td>'
             f'<td class="num">{_e(_num(check.limit))} {limit_unit}</td>'
             f'<td class="margin">{bar}{_e(text)}</td>'
-            f'<td class="where">{_e(check.detail)}</td></tr>')
-    return ('<table class="checks"><thead><tr><th></th><th>check</th><th>value</th>'
-            "<th>limit</th><th>margin</th><th>where / how</th></tr></thead><tbody>"
+            f'<td class="where">{where}</td></tr>')
+    return ('<table class="checks"><thead><tr><th></th><th>check</th><th class="num">value</th>'
+            '<th class="num">limit</th><th>margin</th><th>where / how</th></tr></thead><tbody>'
             + "".join(rows) + "</tbody></table>")
 
 
+def _flat(value) -> str:
+    """A nested value as one line: ``a 1, b 2`` for a mapping, ``1, 2`` for a list."""
+    if isinstance(value, dict):
+        return ", ".join(f"{str(k).replace('_', ' ')} {_flat(v)}" for k, v in value.items()) \
+            or "none"
+    if isinstance(value, (list, tuple)):
+        return ", ".join(_flat(v) for v in value) or "none"
+    return _num(value)
+
+
 def _kv_table(data: dict, skip=()) -> str:
-    rows = []
-    for key, value in data.items():
-        if key in skip:
-            continue
-        if isinstance(value, dict):
-            value = ", ".join(f"{k} {_num(v)}" for k, v in value.items()) or "none"
-        elif isinstance(value, (list, tuple)):
-            value = ", ".join(_num(v) for v in value) or "none"
-        rows.append(f"<tr><td>{_e(str(key).replace('_', ' '))}</td><td>{_e(_num(value))}</td></tr>")
-    return '<table class="kv"><tbody>' + "".join(rows) + "</tbody></table>"
+    rows = "".join(f"<tr><td>{_e(str(key).replace('_', ' '))}</td><td>{_e(_flat(value))}</td>"
+                   "</tr>" for key, value in data.items() if key not in skip)
+    return f'<table class="kv"><tbody>{rows}</tbody></table>'
+
+
+#: Columns of the effects table, in this order; other keys follow as they come.
+_EFFECT_COLUMNS = ("name", "included", "value", "change", "why")
 
 
 def _effects(data: dict) -> str:
-    """The effects the rig included or left out, from the report's ``effects`` entry."""
+    """The effects the rig included or left out, from the report's ``effects`` entry (a list
+    of mappings such as ``{name, included, value, why}``, or a mapping by name), under the
+    fidelity that chose them and its proof (``fidelity``, ``fidelity_proof``) when given."""
     effects = data.get("effects")
+    head = ""
+    if data.get("fidelity") is not None:
+        head = f"<p>fidelity <b>{_e(data['fidelity'])}</b>"
+        proof = data.get("fidelity_proof")
+        if isinstance(proof, dict) and proof:
+            head += f'<br><span class="note">proof: {_e(_flat(proof))}</span>'
+        head += "</p>"
     if not effects:
-        return ('<p class="note">This report lists no effects beyond the model above.</p>')
+        return head + '<p class="note">This report lists no effects beyond the model above.</p>'
     if isinstance(effects, dict):
         effects = [dict(name=k, **v) if isinstance(v, dict) else {"name": k, "value": v}
                    for k, v in effects.items()]
-    keys: list[str] = []
+    effects = [e if isinstance(e, dict) else {"name": e} for e in effects]
+    keys = [k for k in _EFFECT_COLUMNS if any(k in e for e in effects)]
     for effect in effects:
-        if isinstance(effect, dict):
-            keys += [k for k in effect if k not in keys]
+        keys += [k for k in effect if k not in keys]
     rows = []
     for effect in effects:
-        effect = effect if isinstance(effect, dict) else {"name": effect}
-        rows.append("<tr>" + "".join(f"<td>{_e(_num(effect.get(k)))}</td>" for k in keys)
-                    + "</tr>")
-    head = "".join(f"<th>{_e(k.replace('_', ' '))}</th>" for k in keys)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+        cells = []
+        for key in keys:
+            value = effect.get(key)
+            if key == "included" and isinstance(value, bool):
+                state = "pass" if value else "info"
+                cells.append(f'<td><span class="badge {state}">'
+                             f'{"included" if value else "left out"}</span></td>')
+            elif key == "name":
+                cells.append(f"<td><code>{_e(_flat(value))}</code></td>")
+            else:
+                cells.append(f"<td>{_e(_flat(value))}</td>")
+        rows.append("<tr>" + "".join(cells) + "</tr>")
+    columns = "".join(f"<th>{_e(k.replace('_', ' '))}</th>" for k in keys)
+    return (f'{head}<table class="effects"><thead><tr>{columns}</tr></thead><tbody>'
+            f'{"".join(rows)}</tbody></table>')
 
 
 def _bus_and_faults(data: dict) -> str:
@@ -197,13 +249,13 @@ def _bus_and_faults(data: dict) -> str:
     parts = [_kv_table(bus)]
     if download:
         parts.append("<p><b>table download</b></p>" + _kv_table(download))
-    if injected:
-        parts.append("<p><b>injected faults</b></p>" + _kv_table(injected))
+    parts.append("<p><b>injected bus faults:</b> "
+                 + (_e(_flat(injected)) if injected else "none") + "</p>")
     faults = data.get("faults") or []
     if faults:
         items = "".join(f"<li><code>{_e(f.get('code'))}</code> at {_e(_num(f.get('time_s')))} s"
                         "</li>" for f in faults)
-        parts.append(f"<p><b>drive faults (EMCY)</b></p><ul>{items}</ul>")
+        parts.append(f'<p class="bad"><b>drive faults (EMCY):</b></p><ul>{items}</ul>')
     else:
         parts.append("<p><b>drive faults (EMCY):</b> none</p>")
     if data.get("stopped_early"):
@@ -232,200 +284,178 @@ def _scene_fields(scene, prefix: str = "") -> list[tuple[str, object]]:
     return rows
 
 
-def _scene_as_run(scene) -> str:
+def _toml_listing(path: Path, message: str = "") -> str:
+    """The file with line numbers; the lines of the fields an error ``message`` names
+    (``bus.bitrat: unknown field``) marked, so a reader sees at once what to fix."""
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        return f'<p class="note">{_e(path.name)} cannot be read: {_e(exc.strerror or exc)}</p>'
+    named = {tuple(field.split(".")) for field in re.findall(r"\b(\w+(?:\.\w+)+):", message)}
+    lines = text.splitlines() or [""]
+    width = len(str(len(lines)))
+    section: tuple = ()
+    body = []
+    for number, line in enumerate(lines, 1):
+        header = re.match(r"\s*\[+\s*([\w.]+)\s*\]+", line)
+        if header:
+            section = tuple(header.group(1).split("."))
+        key = re.match(r"\s*(\w+)\s*=", line)
+        marked = key is not None and section + (key.group(1),) in named
+        row = f'<span class="ln">{number:>{width}}</span>{_e(line)}'
+        body.append(f'<span class="hl">{row}</span>' if marked else row)
+    opening = '<pre class="whole">' if message else "<pre>"  # a broken file: all of it
+    return opening + "\n".join(body) + "</pre>"
+
+
+def _loaded(scene):
+    """The Scene: ``scene`` itself, or its file loaded; None for a file that does not load
+    (its error is on the page) or a bare name."""
+    from hil_sim.scene import load_scene
+
     if is_dataclass(scene):
-        rows = "".join(f"<tr><td><code>{_e(k)}</code></td><td>{_e(_num(v))}</td></tr>"
-                       for k, v in _scene_fields(scene))
-        return ('<details open><summary>Scene as run (fields)</summary><table class="kv">'
-                f"<tbody>{rows}</tbody></table></details>")
+        return scene
     if isinstance(scene, (str, Path)) and Path(scene).is_file():
         try:
-            text = Path(scene).read_text(encoding="utf-8", errors="replace")
-        except OSError as exc:
-            text = f"(cannot be read: {exc})"
-        return (f"<details open><summary>Scene as run: <code>{_e(Path(scene).name)}</code>"
-                f"</summary><pre>{_e(text)}</pre></details>")
-    return f'<p class="note">Scene {_e(scene)}: no file to show.</p>'
+            return load_scene(scene)
+        except (EcamError, OSError):
+            return None
+    return None
 
 
-def _envelope(x: np.ndarray, *ys: np.ndarray, limit: int = MAX_PLOT_POINTS):
-    """Reduce long records to at most about ``limit`` points, keeping each bucket's min and
-    max of the first y (so the peaks a check reads stay in the plot)."""
-    n = x.size
-    if n <= limit:
-        return (x, *ys)
-    buckets = limit // 2
-    edges = np.linspace(0, n, buckets + 1).astype(int)
-    keep = []
-    main = np.where(np.isfinite(ys[0]), ys[0], 0.0)
-    for start, stop in zip(edges[:-1], edges[1:]):
-        if stop <= start:
-            continue
-        chunk = main[start:stop]
-        pair = sorted({start + int(np.argmin(chunk)), start + int(np.argmax(chunk))})
-        keep.extend(pair)
-    index = np.asarray(keep)
-    return (x[index], *(y[index] for y in ys))
+def _scene_as_run(scene, error: str = "") -> str:
+    """The scene file (TOML, numbered; the fields ``error`` names marked) and every field as
+    run with the defaults filled in (collapsed beside the file)."""
+    loaded = _loaded(scene)
+    path = getattr(loaded, "path", None) if is_dataclass(scene) else \
+        Path(scene) if isinstance(scene, (str, Path)) else None
+    parts = []
+    if path is not None and Path(path).is_file():
+        parts.append(f"<details open><summary>Scene file: <code>{_e(str(path))}</code></summary>"
+                     f"{_toml_listing(Path(path), error)}</details>")
+    elif path is not None:
+        parts.append(f'<p class="note">Scene file {_e(str(path))}: not found.</p>')
+    if loaded is not None:
+        rows = "".join(f"<tr><td><code>{_e(k)}</code></td><td>{_e(_num(v))}</td></tr>"
+                       for k, v in _scene_fields(loaded))
+        # Open when a Scene object was run: it may differ from its file (a test shortened it).
+        shown = " open" if is_dataclass(scene) or not parts else ""
+        parts.append(f"<details{shown}><summary>Scene as run: every field, defaults filled in"
+                     f'</summary><table class="kv fields"><tbody>{rows}</tbody></table>'
+                     "</details>")
+    return "".join(parts) or f'<p class="note">Scene {_e(scene)}: no file to show.</p>'
 
 
-def plot_png(report, dpi: int = 100) -> bytes:
-    """The report's plots as one PNG: load tracking error, coupling torque and motor torque over
-    time, following error over the master position in the cam period; limits dashed in red."""
-    from matplotlib.figure import Figure
+def _plots(report) -> str:
+    """The report's figure as an inline PNG, or a note when there is nothing to plot."""
+    from hil_sim.rig.plot import figure_bytes
 
-    s = report.series
-    units = report.summary.get("units", {})
-    mechanics = report.summary.get("mechanics", {})
-    limits = {c.name: c.limit for c in report.checks}
-    time_s = np.asarray(s["time_s"], dtype=float)
-    motor = s.get("peak_motor_torque")
-    panels = 4 if motor is not None else 3
-    fig = Figure(figsize=(10, 2.8 * panels), constrained_layout=True)
-    axes = list(fig.subplots(panels, 1))
-
-    def limit_lines(ax, limit, data):
-        finite = np.abs(data[np.isfinite(data)])
-        peak = float(finite.max()) if finite.size else 0.0
-        if limit is None:
-            return
-        if limit <= 5.0 * peak or peak == 0.0:
-            for sign in (1, -1):
-                ax.axhline(sign * limit, color="tab:red", ls="--", lw=0.9,
-                           label=f"limit \u00b1{limit:.4g}" if sign > 0 else None)
-        else:  # far away: the curve would be a flat line at this scale
-            ax.plot([], [], color="tab:red", ls="--", lw=0.9,
-                    label=f"limit \u00b1{limit:.4g} (off scale)")
-
-    ax = axes[0]
-    t, y = _envelope(time_s, np.asarray(s["tracking_error"], dtype=float))
-    ax.plot(t, y, lw=0.9, color="tab:blue", label="load tracking error")
-    limit_lines(ax, limits.get("tracking_error"), y)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"tracking error [{units.get('slave', '')}]")
-    ax.set_title("Load-side tracking error against the cam", loc="left", fontsize=11)
-    ax.legend(loc="upper right", fontsize="small")
-
-    ax = axes[1]
-    t, y = _envelope(time_s, np.asarray(s["coupling_torque"], dtype=float))
-    ax.plot(t, y, lw=0.9, color="tab:green", label="coupling torque")
-    for key, style in (("coupling_rated_torque", ":"), ("coupling_max_torque", "--")):
-        value = mechanics.get(key)
-        if value:
-            for sign in (1, -1):
-                ax.axhline(sign * value, color="tab:red", ls=style, lw=0.9,
-                           label=f"{key.replace('_', ' ')} \u00b1{value:.4g}" if sign > 0 else None)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("torque [N m]")
-    ax.set_title("Coupling torque against its ratings", loc="left", fontsize=11)
-    ax.legend(loc="upper right", fontsize="small")
-
-    if motor is not None:
-        ax = axes[2]
-        t, y = _envelope(time_s, np.asarray(motor, dtype=float))
-        ax.plot(t, y, lw=0.9, color="tab:orange", label="motor torque (peak per cycle)")
-        limit_lines(ax, mechanics.get("motor_torque_limit"), y)
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("torque [N m]")
-        ax.set_title("Motor torque against the drive's torque limit", loc="left", fontsize=11)
-        ax.legend(loc="upper right", fontsize="small")
-
-    ax = axes[-1]
-    master = np.asarray(s["master_position"], dtype=float)
-    following = np.asarray(s["following_error"], dtype=float)
-    # The envelope keeps the extremes of its first series: the following error.
-    _, f, m = _envelope(time_s, following, master)
-    ax.plot(m, f, ".", ms=2.0, color="tab:purple", label="following error")
-    limit_lines(ax, limits.get("following_error"), f)
-    ax.set_xlabel(f"master position in the cam period [{units.get('master', '')}]")
-    ax.set_ylabel("following error [counts]")
-    ax.set_title("Motor-side following error over the master position", loc="left", fontsize=11)
-    ax.legend(loc="upper right", fontsize="small")
-
-    buffer = io.BytesIO()
-    # No Software/date metadata: the same report gives the same bytes.
-    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    return buffer.getvalue()
+    series = report.series or {}
+    if "master_position" not in series or not len(series["master_position"]):
+        return '<p class="note">No recorded samples to plot.</p>'
+    png = base64.b64encode(figure_bytes(report)).decode("ascii")
+    return (f'<img class="plot" width="1100" alt="tracking error, following error, coupling '
+            f'and motor torque of {_e(report.scene)} over the master position" '
+            f'src="data:image/png;base64,{png}">')
 
 
-def _scene_section(scene, report, seconds) -> str:
-    label = scene_label(scene)
+def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> str:
     anchor = _anchor(label)
     if isinstance(report, BaseException):
+        details = getattr(report, "details", "")
+        trace = (f"<details><summary>Traceback</summary><pre>{_e(details)}</pre></details>"
+                 if details else "")
         return (f'<section class="scene" id="{anchor}"><h2><span class="badge error">ERROR'
-                f"</span>{_e(label)}</h2><p class=\"failed-lines mono\">{_e(report)}</p>"
-                + _scene_as_run(scene) + "</section>")
+                f"</span>{_e(label)}</h2><p class=\"desc\">This scene could not run "
+                f"({_e(type(report).__name__)}); the other scenes ran.</p>"
+                f'<div class="failed-lines mono">{_e(report)}</div>{trace}'
+                + _scene_as_run(scene, str(report)) + "</section>")
     data = report.to_dict()
     state = "pass" if report.passed else "fail"
     parts = [f'<section class="scene" id="{anchor}">',
-             f'<h2><span class="badge {state}">{state.upper()}</span>{_e(report.scene)}</h2>']
-    description = getattr(scene, "description", "")
+             f'<h2><span class="badge {state}">{state.upper()}</span>{_e(label)}</h2>']
+    description = getattr(_loaded(scene), "description", "")
     if description:
         parts.append(f'<p class="desc">{_e(description)}</p>')
-    parts.append(f'<p class="desc">{report.cycles} cycles of {_num(data.get("cycle_s"))} s '
-                 f'({_num(data.get("simulated_s"))} s simulated), cam {_e(data.get("cam_mode"))}'
-                 f"-side; model <b>{_e(report.model)}</b></p>")
+    master = data.get("master") or {}
+    units = data.get("units") or {}
+    parts.append(
+        f'<p class="desc">{report.cycles} cycles of {_num(data.get("cycle_s"))} s '
+        f'({_num(data.get("simulated_s"))} s simulated, {_num(master.get("periods"))} master '
+        f'periods at {_num(master.get("speed"))} {_e(master.get("speed_unit", ""))}); cam '
+        f'{_e(data.get("cam_mode"))}-side; model <b>{_e(report.model)}</b></p>')
     if report.failed:
         parts.append('<div class="failed-lines mono">'
                      + "\n".join(_e(c.line()) for c in report.failed) + "</div>")
     parts.append("<h3>Checks</h3>" + _checks_table(report))
-    if report.series and "time_s" in report.series and len(report.series["time_s"]):
-        png = base64.b64encode(plot_png(report)).decode("ascii")
-        parts.append(f'<h3>Plots</h3><img class="plot" alt="tracking error, coupling torque and '
-                     f'following error of {_e(report.scene)}" src="data:image/png;base64,{png}">')
-    else:
-        parts.append('<h3>Plots</h3><p class="note">No recorded samples to plot.</p>')
-    parts.append('<div class="grid"><div>')
+    parts.append(f"<h3>Over the master position [{_e(units.get('master', ''))}]</h3>"
+                 + _plots(report))
     parts.append(f"<h3>Model and effects</h3><p><b>{_e(report.model)}</b>: "
                  f"{_e(report.model_reason)}</p>" + _effects(data))
-    parts.append("</div><div><h3>Bus and faults</h3>" + _bus_and_faults(data) + "</div></div>")
-    parts.append('<div class="grid">')
+    parts.append('<div class="grid"><div><h3>Bus and faults</h3>' + _bus_and_faults(data)
+                 + "</div>")
     for key in ("master", "table", "mechanics"):
         if isinstance(data.get(key), dict):
             parts.append(f"<div><h3>{key.capitalize()}</h3>{_kv_table(data[key])}</div>")
     parts.append("</div>")
-    parts.append(_scene_as_run(scene))
-    timing = report.timing or {}
-    wall = f"{seconds:.3g} s wall"
-    if timing.get("real_time_factor"):
-        wall += f", real-time factor {timing['real_time_factor']:.3g}x"
-    parts.append(f'<p class="note">Run time (not part of the verdict): {_e(wall)}.</p>')
+    parts.append("<h3>Scene as run</h3>" + _scene_as_run(scene))
+    if timing:
+        wall = f"{seconds:.3g} s wall"
+        if (report.timing or {}).get("real_time_factor"):
+            wall += f", real-time factor {report.timing['real_time_factor']:.3g}x"
+        parts.append(f'<p class="note">Run time (not part of the verdict): {_e(wall)}.</p>')
     parts.append("</section>")
     return "\n".join(parts)
 
 
-def _overview(results) -> str:
+def _nearest(report) -> str:
+    """The failed checks with their ratio, or the passed check nearest its limit."""
+    if report.failed:
+        return ", ".join(f"{c.name} x{c.ratio:.3g}" if c.ratio is not None else c.name
+                         for c in report.failed)
+    rated = [c for c in report.checks if c.ratio is not None and c.limit is not None]
+    if not rated:
+        return "\u2013"
+    worst = max(rated, key=lambda c: c.ratio)
+    return f"{worst.name} {100.0 * worst.ratio:.3g} % of its limit"
+
+
+def _overview(labels, results, timing: bool) -> str:
     rows = []
-    for scene, report, seconds in results:
-        label = scene_label(scene)
+    for label, (scene, report, seconds) in zip(labels, results):
+        link = f'<a href="#{_anchor(label)}">{_e(label)}</a>'
+        wall = f'<td class="num">{seconds:.2f} s</td>' if timing else ""
         if isinstance(report, BaseException):
             rows.append(f'<tr class="fail"><td><span class="badge error">ERROR</span></td>'
-                        f'<td><a href="#{_anchor(label)}">{_e(label)}</a></td><td>\u2013</td>'
-                        f'<td class="num">\u2013</td><td>{_e(report)}</td>'
-                        f'<td class="num">{seconds:.2f} s</td></tr>')
+                        f'<td>{link}</td><td>\u2013</td><td class="num">\u2013</td>'
+                        f'<td class="mono small">{_e(report)}</td>{wall}</tr>')
             continue
         state = "pass" if report.passed else "fail"
-        failed = ", ".join(f"{c.name} x{c.ratio:.3g}" if c.ratio is not None else c.name
-                           for c in report.failed) or "none"
         rows.append(f'<tr class="{state}"><td><span class="badge {state}">{state.upper()}</span>'
-                    f'</td><td><a href="#{_anchor(label)}">{_e(label)}</a></td>'
-                    f"<td>{_e(report.model)}</td><td class=\"num\">{report.cycles}</td>"
-                    f"<td>{_e(failed)}</td><td class=\"num\">{seconds:.2f} s</td></tr>")
-    return ("<table><thead><tr><th></th><th>scene</th><th>model</th><th>cycles</th>"
-            "<th>failed checks</th><th>wall</th></tr></thead><tbody>" + "".join(rows)
-            + "</tbody></table>")
+                    f"</td><td>{link}</td><td>{_e(report.model)}</td>"
+                    f'<td class="num">{report.cycles}</td><td>{_e(_nearest(report))}</td>'
+                    f"{wall}</tr>")
+    head = ('<th></th><th>scene</th><th>model</th><th class="num">cycles</th>'
+            "<th>failed checks, or the check nearest its limit</th>"
+            + ('<th class="num">wall</th>' if timing else ""))
+    return (f'<table class="overview"><thead><tr>{head}</tr></thead><tbody>{"".join(rows)}'
+            "</tbody></table>")
 
 
-def html_report(results, title: str = "ecam rig report") -> str:
+def html_report(results, title: str = "ecam rig report", timing: bool = False) -> str:
     """A self-contained HTML page for rig results.
 
     Parameters
     ----------
     results : list of (scene, report, seconds)
         ``scene`` is the scene file's path (its TOML is shown), a
-        :class:`hil_sim.scene.Scene` (its fields are shown) or a name; ``report`` a
-        :class:`hil_sim.report.Report` or the exception the run raised; ``seconds`` its wall
-        time. :func:`ecam.app.multi.run_scenes` returns this list.
+        :class:`hil_sim.scene.Scene` (its file, and its fields, are shown) or a name;
+        ``report`` a :class:`hil_sim.report.Report` or the exception that kept the scene
+        from running; ``seconds`` its wall time. :func:`ecam.app.multi.run_scenes` returns
+        this list.
     title : str
+    timing : bool
+        Show the wall times (then the page is no longer the same bytes run to run).
 
     Returns
     -------
@@ -433,26 +463,39 @@ def html_report(results, title: str = "ecam rig report") -> str:
         The page (UTF-8 text); no external resources, no script.
     """
     results = list(results)
-    ok = [r for _, r, _ in results if not isinstance(r, BaseException) and r.passed]
-    passed = len(ok) == len(results) and bool(results)
-    state = "pass" if passed else "fail"
-    headline = (f"{'PASSED' if passed else 'FAILED'}: {len(ok)} of {len(results)} "
-                f"scene{'s' if len(results) != 1 else ''} passed")
+    labels = scene_labels([scene for scene, _, _ in results])
+    errors = sum(1 for _, r, _ in results if isinstance(r, BaseException))
+    passed = sum(1 for _, r, _ in results if not isinstance(r, BaseException) and r.passed)
+    ok = passed == len(results) and bool(results)
+    state = "pass" if ok else "fail"
+    headline = (f"{'PASSED' if ok else 'FAILED'}: {passed} of {len(results)} "
+                f"scene{'s' if len(results) != 1 else ''} passed"
+                + (f", {errors} could not run" if errors else "")) if results \
+        else "NO SCENE RAN"
+    checks = sum(len(r.checks) for _, r, _ in results if not isinstance(r, BaseException))
+    failed_checks = sum(len(r.failed) for _, r, _ in results if not isinstance(r, BaseException))
     lines = []
-    for scene, report, _ in results:
-        label = scene_label(scene)
+    for label, (_, report, _) in zip(labels, results):
+        link = f'<a href="#{_anchor(label)}">{_e(label)}</a>'
         if isinstance(report, BaseException):
-            lines.append(f"<li><b>{_e(label)}</b>: <span class=\"mono\">{_e(report)}</span></li>")
-        else:
-            lines += [f"<li><b>{_e(label)}</b>: <span class=\"mono\">{_e(c.line())}</span></li>"
-                      for c in report.failed]
-    failed = f"<ul>{''.join(lines)}</ul>" if lines else "<p>Every check of every scene holds.</p>"
-    body = [f'<header class="verdict {state}"><h1>{_e(headline)}</h1>{failed}</header>',
-            "<h3>Scenes</h3>", _overview(results)]
-    # Failed scenes first (stable otherwise): the first section a reader sees is what broke.
-    ordered = sorted(results, key=lambda item: not (isinstance(item[1], BaseException)
-                                                    or not item[1].passed))
-    body += [_scene_section(scene, report, seconds) for scene, report, seconds in ordered]
+            lines.append(f'<li><b>{link}</b> could not run: <span class="mono">{_e(report)}'
+                         "</span></li>")
+        elif report.failed:
+            checks_ = "".join(f'<li class="mono">{_e(c.line())}</li>' for c in report.failed)
+            lines.append(f"<li><b>{link}</b><ul>{checks_}</ul></li>")
+    failed = (f"<ul>{''.join(lines)}</ul>" if lines
+              else "<p>Every check of every scene holds.</p>")
+    ran = len(results) - errors
+    counts = (f'<p class="counts">{checks} checks in {ran} scene{"s" if ran != 1 else ""}, '
+              f"{failed_checks} failed"
+              + (f"; {errors} scene{'s' if errors != 1 else ''} could not run" if errors else "")
+              + "</p>")
+    body = [f'<header class="verdict {state}"><h1>{_e(headline)}</h1>{counts}{failed}</header>',
+            "<h3>Scenes</h3>", _overview(labels, results, timing)]
+    # Broken and failed scenes first (stable otherwise): the first section is what broke.
+    order = sorted(range(len(results)), key=lambda i: (
+        0 if isinstance(results[i][1], BaseException) else 1 if not results[i][1].passed else 2))
+    body += [_scene_section(labels[i], *results[i], timing) for i in order]
     from importlib.metadata import PackageNotFoundError, version
 
     try:
@@ -464,5 +507,5 @@ def html_report(results, title: str = "ecam rig report") -> str:
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
             f"<title>{_e(title)}: {_e(headline)}</title>\n<style>{_CSS}</style>\n</head>\n"
-            f"<body>\n<main>\n<p class=\"note\">{_e(title)}</p>\n" + "\n".join(body)
+            f"<body>\n<main>\n<p class=\"title\">{_e(title)}</p>\n" + "\n".join(body)
             + "\n</main>\n</body>\n</html>\n")

@@ -1,16 +1,20 @@
 """JUnit XML for rig runs: what GitLab, Jenkins and GitHub Actions show as test results.
 
 One ``testsuite`` per scene, one ``testcase`` per check of its report. A failed check carries
-a ``failure`` element whose ``message`` is the check's one line (value, limit, by how much,
-where: :meth:`hil_sim.report.Check.line`); the scene's model and why, its effects, bus load and
-faults go into the suite's ``system-out``. A scene the rig could not run is one testcase with
-an ``error`` element.
+a ``failure`` element whose ``message`` and text are the check's one line (value, limit, by
+how much, where: :meth:`hil_sim.report.Check.line`); the scene's model and why, its effects,
+bus load and faults go into the suite's ``system-out``, and into the failed testcase's too
+(GitLab shows a testcase's output, not a suite's, and only for failed tests). A scene that
+could not run (a bad scene file, a rig error) is one testcase named ``run`` with an ``error``
+element: its message, and for a crash inside the rig the traceback.
 
 The layout follows the JUnit schema Jenkins' xUnit plugin validates against (``junit-10.xsd``;
 GitLab and GitHub Actions read the same elements): ``testsuites`` > ``testsuite`` (required
 ``name``, ``tests``, ``failures``, ``errors``; ``time`` in seconds) > ``testcase`` (``name``,
-``classname``) > ``failure``/``error`` (``message``, ``type``, text). The output is
-deterministic except for the ``time`` attributes; there is no timestamp and no host name.
+``classname``) > ``failure``/``error`` (``message``, ``type``, text). Suites are named by
+:func:`ecam.app.multi.scene_labels` (distinct, since CI servers key results by name), cases
+``ecam.sim.<scene>`` / ``<check>``. The output is deterministic except for the ``time``
+attributes; there is no timestamp and no host name.
 """
 
 from __future__ import annotations
@@ -18,14 +22,9 @@ from __future__ import annotations
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-__all__ = ["junit_xml", "scene_label"]
+from ecam.app.multi import scene_labels
 
-
-def scene_label(scene) -> str:
-    """The suite name of a scene given as a path (its file stem), a Scene, or a name."""
-    if isinstance(scene, Path) or (isinstance(scene, str) and scene.endswith(".toml")):
-        return Path(scene).stem
-    return str(getattr(scene, "name", scene))
+__all__ = ["junit_xml"]
 
 
 def _system_out(report) -> str:
@@ -34,13 +33,23 @@ def _system_out(report) -> str:
     lines = [f"scene {report.scene}: {'PASSED' if report.passed else 'FAILED'} after "
              f"{report.cycles} cycles", f"model: {report.model_reason}"]
     effects = data.get("effects")
+    if data.get("fidelity") is not None:
+        proof = data.get("fidelity_proof")
+        lines.append(f"fidelity {data['fidelity']}"
+                     + (f"; proof: {_flat(proof)}" if isinstance(proof, dict) and proof else ""))
     if isinstance(effects, list):
         for effect in effects:
             if isinstance(effect, dict):
                 state = "included" if effect.get("included") else "left out"
-                why = effect.get("reason") or effect.get("why") or ""
+                why = effect.get("why") or effect.get("reason") or ""
+                # The value and why say it; the other fields (how much it moves which
+                # check, where the value came from) are in the HTML report's table.
+                shown = ("value",) if why else tuple(effect)
+                rest = ", ".join(_flat(effect[key]) for key in shown
+                                 if key not in ("name", "included", "why", "reason")
+                                 and effect.get(key) not in (None, ""))
                 lines.append(f"effect {effect.get('name', '?')}: {state}"
-                             + (f"; {why}" if why else ""))
+                             + (f", {rest}" if rest else "") + (f"; {why}" if why else ""))
             else:
                 lines.append(f"effect {effect}")
     elif isinstance(effects, dict):
@@ -76,6 +85,14 @@ def _time(seconds) -> str:
     return f"{max(float(seconds), 0.0):.3f}"
 
 
+def _scene_file(scene) -> str | None:
+    """The scene's file, for the suite's ``file`` attribute."""
+    if isinstance(scene, (str, Path)):
+        return str(scene)
+    path = getattr(scene, "path", None)
+    return str(path) if path is not None else None
+
+
 def junit_xml(results, suites_name: str = "ecam sim") -> str:
     """JUnit XML text for rig results.
 
@@ -83,8 +100,8 @@ def junit_xml(results, suites_name: str = "ecam sim") -> str:
     ----------
     results : list of (scene, report, seconds)
         ``scene`` is the scene file's path, a Scene, or a name; ``report`` a
-        :class:`hil_sim.report.Report` or the exception a scene's run raised; ``seconds`` the
-        run's wall time. (:func:`ecam.app.multi.run_scenes` returns this list.)
+        :class:`hil_sim.report.Report` or the exception that kept the scene from running;
+        ``seconds`` the run's wall time. (:func:`ecam.app.multi.run_scenes` returns this list.)
     suites_name : str
         ``name`` of the ``testsuites`` root element.
 
@@ -93,34 +110,39 @@ def junit_xml(results, suites_name: str = "ecam sim") -> str:
     str
         The XML document, UTF-8 declared, ending with a newline.
     """
+    results = list(results)
     root = ET.Element("testsuites", name=suites_name)
     totals = {"tests": 0, "failures": 0, "errors": 0, "time": 0.0}
-    for scene, report, seconds in results:
-        label = scene_label(scene)
+    labels = scene_labels([scene for scene, _, _ in results])
+    for label, (scene, report, seconds) in zip(labels, results):
         suite = ET.SubElement(root, "testsuite", name=label)
+        # Jenkins shows a classname a.b.c as package a.b, class c: keep the label one name.
+        classname = "ecam.sim." + label.replace("/", "_").replace(".", "_")
         if isinstance(report, BaseException):
             tests, failures, errors = 1, 0, 1
-            case = ET.SubElement(suite, "testcase", name="run", classname=f"ecam.sim.{label}")
+            case = ET.SubElement(suite, "testcase", name="run", classname=classname)
             error = ET.SubElement(case, "error", message=str(report), type=type(report).__name__)
-            error.text = str(report)
-            out = f"scene {label}: the rig could not run it: {report}\n"
+            details = getattr(report, "details", "")
+            error.text = str(report) + (f"\n\n{details}" if details else "")
+            out = f"scene {label}: could not run: {report}\n"
         else:
             tests, failures, errors = len(report.checks), len(report.failed), 0
+            out = _system_out(report)
             for check in report.checks:
-                case = ET.SubElement(suite, "testcase", name=check.name,
-                                     classname=f"ecam.sim.{label}")
+                case = ET.SubElement(suite, "testcase", name=check.name, classname=classname)
                 if not check.passed:
                     line = check.line()
                     failure = ET.SubElement(case, "failure", message=line, type="CheckFailed")
                     failure.text = line
-            out = _system_out(report)
+                    ET.SubElement(case, "system-out").text = out
         suite.set("tests", str(tests))
         suite.set("failures", str(failures))
         suite.set("errors", str(errors))
         suite.set("skipped", "0")
         suite.set("time", _time(seconds))
-        if isinstance(scene, (str, Path)) and str(scene).endswith(".toml"):
-            suite.set("file", str(scene))
+        file = _scene_file(scene)
+        if file is not None:
+            suite.set("file", file)
         ET.SubElement(suite, "system-out").text = out
         totals["tests"] += tests
         totals["failures"] += failures

@@ -1,9 +1,10 @@
 """pytest plugin: scene files as tests, and helpers to run scenes from Python tests.
 
 Installed with the package (entry point group ``pytest11``, name ``ecam``), so pytest loads it
-in every run, where it does nothing unless asked:
+in every run, where it does nothing unless asked (an option on the command line, or the
+``ecam_scenes`` ini setting):
 
-``pytest --ecam-scenes DIR``
+``pytest --ecam-scenes DIR`` (or ``ecam_scenes = DIR ...`` in ``pytest.ini`` / ``[tool.pytest.ini_options]``)
     Every scene file under ``DIR`` (recursively: ``*.toml`` files with a scene section such
     as ``[master]`` or ``[limits]``, see :func:`ecam.app.multi.is_scene_file`; cam files in the
     same directory are skipped) becomes **one test item per scene**, named
@@ -15,21 +16,22 @@ in every run, where it does nothing unless asked:
     text report is attached to the item (``pytest -rA`` shows it for passing scenes too).
     One item per scene rather than per check: the checks are only known once the scene has
     run, and a scene runs once however many checks it has (per-check results are in
-    ``ecam sim --junit``). The option may be given several times.
+    ``ecam sim --junit``). The option may be given several times; ini paths are relative to
+    the ini file's directory.
 
 ``pytest --ecam-html FILE``
     Also write one self-contained HTML report (:func:`ecam.app.html_report.html_report`) of
     the scenes the session ran: the scene items, and the scenes run through the ``run_scene``
-    fixture.
+    fixture (shown as run, with a shortened duration where one was given).
 
 For Python tests::
 
-    from ecam.app.pytest_plugin import assert_passes, run_scene
+    from ecam.app.pytest_plugin import assert_check, assert_margin, assert_passes, run_scene
 
     def test_knife_at_120_rpm():
         report = run_scene("scenes/knife.toml", master_periods=1.0)
         assert_passes(report)          # prints every check line; fails with the failed ones
-        assert report.check("wind_up").ratio < 0.5
+        assert_margin(report, "wind_up", share=0.5)   # at most half of its limit
 
 or the ``run_scene`` fixture, which does the same and adds the run to ``--ecam-html``.
 
@@ -44,10 +46,12 @@ from pathlib import Path
 
 import pytest
 
-__all__ = ["run_scene", "assert_passes", "SceneFailure"]
+__all__ = ["run_scene", "scene_for_run", "assert_passes", "assert_check", "assert_margin",
+           "SceneFailure"]
 
 _RESULTS = pytest.StashKey[list]()
 _DIRS = pytest.StashKey[list]()
+_WROTE = pytest.StashKey[str]()
 
 
 class SceneFailure(AssertionError):
@@ -61,27 +65,13 @@ class SceneFailure(AssertionError):
         super().__init__("\n".join(lines))
 
 
-def run_scene(scene, *, cycles: int | None = None, seconds: float | None = None,
-              master_periods: float | None = None):
-    """Run a scene on the rig and return its :class:`~hil_sim.report.Report`.
-
-    Parameters
-    ----------
-    scene : str, Path or hil_sim.scene.Scene
-        A scene file, or a scene already loaded.
-    cycles, seconds, master_periods : optional
-        At most one: run for this long instead of the scene's ``[duration]`` (a shorter run
-        keeps a unit test fast).
-
-    Raises
-    ------
-    ecam.errors.EcamError
-        A bad scene file or duration, or a run the rig cannot do.
-    """
+def scene_for_run(scene, *, cycles: int | None = None, seconds: float | None = None,
+                  master_periods: float | None = None):
+    """The :class:`~hil_sim.scene.Scene` that :func:`run_scene` runs: ``scene`` loaded (if a
+    path) with its duration replaced when one is given (see :func:`run_scene`)."""
     from dataclasses import replace
 
     from ecam.errors import InputError
-    from hil_sim.rig import run_scene as rig_run_scene
     from hil_sim.scene import DurationSpec, Scene, load_scene
 
     if not isinstance(scene, Scene):
@@ -101,7 +91,30 @@ def run_scene(scene, *, cycles: int | None = None, seconds: float | None = None,
             raise InputError(f"{key}: {value!r} should be "
                              f"{'an integer >= 1' if key == 'cycles' else 'a number > 0'}")
         scene = replace(scene, duration=DurationSpec(**given))
-    return rig_run_scene(scene)
+    return scene
+
+
+def run_scene(scene, *, cycles: int | None = None, seconds: float | None = None,
+              master_periods: float | None = None):
+    """Run a scene on the rig and return its :class:`~hil_sim.report.Report`.
+
+    Parameters
+    ----------
+    scene : str, Path or hil_sim.scene.Scene
+        A scene file, or a scene already loaded.
+    cycles, seconds, master_periods : optional
+        At most one: run for this long instead of the scene's ``[duration]`` (a shorter run
+        keeps a unit test fast).
+
+    Raises
+    ------
+    ecam.errors.EcamError
+        A bad scene file or duration, or a run the rig cannot do.
+    """
+    from hil_sim.rig import run_scene as rig_run_scene
+
+    return rig_run_scene(scene_for_run(scene, cycles=cycles, seconds=seconds,
+                                       master_periods=master_periods))
 
 
 def assert_passes(report) -> None:
@@ -116,6 +129,63 @@ def assert_passes(report) -> None:
         raise SceneFailure(report)
 
 
+def assert_check(report, name: str) -> None:
+    """Fail, with the check's line as the message, unless the check ``name`` passed.
+
+    Raises
+    ------
+    KeyError
+        The report has no check of that name (the message lists the names it has).
+    """
+    __tracebackhide__ = True
+    check = _named_check(report, name)
+    if not check.passed:
+        raise AssertionError(f"{check.line()}\nscene {report.scene}: {report.model_reason}")
+
+
+def assert_margin(report, name: str | None = None, share: float = 0.8) -> None:
+    """Fail unless the check ``name`` (every check with a limit, when None) uses at most
+    ``share`` of its limit: a margin kept, so that a change which eats most of it shows up
+    before the check fails. The message is each offending check's line and its share.
+
+    Raises
+    ------
+    KeyError
+        ``name`` is not a check of the report.
+    ValueError
+        ``share`` not in (0, 1].
+    """
+    __tracebackhide__ = True
+    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share <= 1:
+        from ecam.errors import InputError
+
+        raise InputError(f"share: {share!r} should be a number in (0, 1]")
+    checks = [_named_check(report, name)] if name is not None else \
+        [c for c in report.checks if c.limit is not None]
+    lines = []
+    for check in checks:
+        if check.limit is None:
+            continue
+        used = check.ratio
+        if used is None:  # a zero limit or no value: the verdict is the margin
+            if not check.passed:
+                lines.append(check.line())
+            continue
+        if used > share:
+            lines.append(f"{check.line()}\n  uses {100 * used:.3g} % of its limit, more than "
+                         f"the {100 * share:.3g} % allowed")
+    if lines:
+        raise AssertionError("\n".join(lines) + f"\nscene {report.scene}: {report.model_reason}")
+
+
+def _named_check(report, name: str):
+    try:
+        return report.check(name)
+    except KeyError:
+        raise KeyError(f"scene {report.scene} has no check {name!r}; its checks: "
+                       f"{', '.join(c.name for c in report.checks)}") from None
+
+
 # ------------------------------------------------------------------------------------------
 # Hooks
 
@@ -126,16 +196,22 @@ def pytest_addoption(parser) -> None:
                          "test item; may be given several times")
     group.addoption("--ecam-html", default=None, metavar="FILE",
                     help="write one self-contained HTML report of the scenes run")
+    parser.addini("ecam_scenes", type="paths", default=[],
+                  help="directories whose scene files run as test items, as --ecam-scenes "
+                       "(relative to the ini file)")
 
 
 def pytest_configure(config) -> None:
     config.stash[_RESULTS] = []
     dirs = []
-    for item in config.getoption("ecam_scenes") or []:
+    given = [("--ecam-scenes", item) for item in config.getoption("ecam_scenes") or []]
+    given += [("ini ecam_scenes", item) for item in config.getini("ecam_scenes") or []]
+    for source, item in given:
         path = Path(item)
         if not path.is_dir():
-            raise pytest.UsageError(f"--ecam-scenes: {item!r} should be a directory")
-        dirs.append(path.resolve())
+            raise pytest.UsageError(f"{source}: {str(item)!r} should be a directory")
+        if path.resolve() not in dirs:
+            dirs.append(path.resolve())
     config.stash[_DIRS] = dirs
     html = config.getoption("ecam_html")
     if html and not Path(html).resolve().parent.is_dir():
@@ -208,10 +284,20 @@ class SceneItem(pytest.Item):
 def run_scene_fixture(request):
     """:func:`run_scene`, with the run added to the ``--ecam-html`` report."""
 
+    from ecam.errors import EcamError
+    from hil_sim.rig import run_scene as rig_run_scene
+
     def run(scene, **duration):
         start = time.perf_counter()
-        report = run_scene(scene, **duration)
-        request.config.stash[_RESULTS].append((scene, report, time.perf_counter() - start))
+        results = request.config.stash[_RESULTS]
+        try:
+            # The scene as run: its duration replaced, if given, so the report shows that.
+            ran = scene_for_run(scene, **duration) if duration else scene
+            report = rig_run_scene(ran)
+        except EcamError as exc:
+            results.append((scene, exc, time.perf_counter() - start))
+            raise
+        results.append((ran, report, time.perf_counter() - start))
         return report
 
     return run
@@ -225,4 +311,18 @@ def pytest_sessionfinish(session) -> None:
     from ecam.atomic_files import write_files
 
     results = session.config.stash.get(_RESULTS, [])
-    write_files({Path(target): html_report(results, title="ecam scenes (pytest)")})
+    try:
+        write_files({Path(target): html_report(results, title="ecam scenes (pytest)")})
+    except OSError as exc:  # one line at the end of the run, not an internal error
+        session.config.stash[_WROTE] = (f"--ecam-html {target}: cannot be written: "
+                                        f"{exc.strerror or exc}")
+        session.exitstatus = pytest.ExitCode.USAGE_ERROR
+        return
+    session.config.stash[_WROTE] = (f"ecam: HTML report of {len(results)} scene run"
+                                    f"{'s' if len(results) != 1 else ''}: {target}")
+
+
+def pytest_terminal_summary(terminalreporter, config) -> None:
+    line = config.stash.get(_WROTE, None)
+    if line:
+        terminalreporter.write_line(line)

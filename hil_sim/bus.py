@@ -146,6 +146,33 @@ class BusLoad:
         }
 
 
+def arbitrate(frames: list, budget_bits: int, used_bits: int) -> tuple[list, list]:
+    """Which frames of one bus cycle get on the bus before the next SYNC.
+
+    Parameters
+    ----------
+    frames : list of (cob_id, data_length, item)
+        The frames waiting after the cycle's SYNC (and after ``used_bits``).
+    budget_bits : int
+        Bits of one cycle at the bitrate.
+    used_bits : int
+        Bits already on the bus in this cycle (the SYNC, frames carried over from the last).
+
+    Returns
+    -------
+    on_time, late : list, list
+        The frames in the order they go, and those that do not fit: CAN arbitration lets the
+        lowest COB-ID win whenever the bus falls idle, so the frames go lowest COB-ID first and
+        the first that would end past the budget is late with every frame after it (they go
+        out after the next SYNC).
+    """
+    on_time, late = [], []
+    for frame in sorted(frames, key=lambda f: f[0]):
+        used_bits += frame_bits(frame[1])
+        (on_time if used_bits <= budget_bits and not late else late).append(frame)
+    return on_time, late
+
+
 @dataclass(frozen=True)
 class Faults:
     """What goes wrong on the bus, reproducibly.

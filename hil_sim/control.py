@@ -1,12 +1,14 @@
 """The drive's control loop: position P -> velocity PI cascade with feed-forward and torque limit.
 
 One :class:`ServoAxis` is what a servo drive in cyclic synchronous position mode does between
-two SYNCs: it takes the new target, interpolates linearly from the previous target over
-``substeps`` controller periods, and closes the loops on the plant at each of them.
+two SYNCs: it takes the new target (latched at the SYNC), interpolates from the previous target
+over the next cycle in ``substeps`` controller periods, and closes the loops on the plant at
+each of them.
 
 Everything is motor side and SI inside (rad, rad/s, N m); targets and positions at the edge are
-integer encoder counts. Feedback is ideal (exact motor angle and speed, no encoder quantization,
-no computation delay).
+integer position counts. What the drive has of a real one is chosen by :class:`DriveEffects`:
+ideal feedback or an encoder with a filtered speed estimate, an ideal torque or a current loop
+with its lag, and the torque applied at once or one controller period later (computation delay).
 """
 
 from __future__ import annotations
@@ -16,15 +18,59 @@ from dataclasses import dataclass
 
 from ecam.mechanics import Mechanics
 from ecam.validate import choice, fail, integer, number, plain, positive
-from hil_sim.plant import RigidPlant, TwoMassPlant, choose_model
+from hil_sim.feedback import Encoder, IdealFeedback
+from hil_sim.filters import Notch
+from hil_sim.plant import MechanicalEffects, Plant, choose_model
 
 #: Plant models a :class:`ServoAxis` (and a scene's ``drive.model``) can ask for.
 MODELS = ("auto", "rigid", "two_mass")
+#: Where the drive takes its feed-forward from (a scene's ``drive.feedforward``).
+FEEDFORWARD_SOURCES = ("target", "offset")
 _DEFAULT_COUNTS_PER_MOTOR_RAD = 2**20 / (2.0 * math.pi)  # a 20-bit single-turn encoder
+#: Time constant of the acceleration feed-forward's low-pass when it is derived from the targets
+#: alone [s]: a second difference of integer targets is noise that grows with the cycle rate.
+TARGET_ACCELERATION_FILTER_S = 1e-3
 
 
 def _non_negative(field: str, value: object) -> float:
     return number(field, plain(value), minimum=0.0)
+
+
+@dataclass(frozen=True)
+class DriveEffects:
+    """What the drive has of a real one; the defaults are an ideal drive.
+
+    Parameters
+    ----------
+    encoder_counts_per_rev : int or None
+        Motor encoder counts per revolution; None: the exact angle and speed are fed back.
+    velocity_filter_hz : float
+        Cut-off of the speed estimate's first-order filter [Hz], with an encoder.
+    current_loop_hz : float or None
+        Current-loop bandwidth [Hz]: the torque follows the command through a first-order lag;
+        None: the torque is the command.
+    computation_delay : bool
+        The torque computed from one period's samples is applied in the next period (a drive
+        samples, computes, then writes its PWM), instead of at once.
+    """
+
+    encoder_counts_per_rev: int | None = None
+    velocity_filter_hz: float = 2000.0
+    current_loop_hz: float | None = None
+    computation_delay: bool = False
+
+    def __post_init__(self) -> None:
+        if self.encoder_counts_per_rev is not None:
+            object.__setattr__(self, "encoder_counts_per_rev", integer(
+                "encoder_counts_per_rev", plain(self.encoder_counts_per_rev), minimum=4,
+                maximum=2**40))
+        object.__setattr__(self, "velocity_filter_hz",
+                           positive("velocity_filter_hz", plain(self.velocity_filter_hz)))
+        if self.current_loop_hz is not None:
+            object.__setattr__(self, "current_loop_hz",
+                               positive("current_loop_hz", plain(self.current_loop_hz)))
+        if not isinstance(self.computation_delay, bool):
+            raise fail("computation_delay", self.computation_delay, "true or false")
 
 
 @dataclass(frozen=True)
@@ -43,6 +89,12 @@ class Gains:
         Fraction of the interpolated target's speed fed forward to the speed command [-], >= 0.
     acceleration_feedforward : float
         Fraction of the model torque J_eq alpha_ref + b_eq omega_ref fed forward [-], >= 0.
+    notch_hz : float
+        Centre of the notch on the torque command [Hz] (:mod:`hil_sim.filters`); 0: none.
+    notch_width : float
+        Its width (the poles' damping ratio), > 0.
+    notch_depth_db : float
+        Its depth [dB], > 0.
     """
 
     position_kp: float
@@ -50,11 +102,15 @@ class Gains:
     velocity_ki: float
     velocity_feedforward: float = 1.0
     acceleration_feedforward: float = 1.0
+    notch_hz: float = 0.0
+    notch_width: float = 0.5
+    notch_depth_db: float = 30.0
 
     def __post_init__(self) -> None:
-        for name in ("position_kp", "velocity_kp"):
+        for name in ("position_kp", "velocity_kp", "notch_width", "notch_depth_db"):
             object.__setattr__(self, name, positive(name, plain(getattr(self, name))))
-        for name in ("velocity_ki", "velocity_feedforward", "acceleration_feedforward"):
+        for name in ("velocity_ki", "velocity_feedforward", "acceleration_feedforward",
+                     "notch_hz"):
             object.__setattr__(self, name, _non_negative(name, getattr(self, name)))
 
     @classmethod
@@ -112,7 +168,7 @@ class ServoAxis:
         Controller periods per bus cycle, >= 1; the controller and plant step is
         ``cycle_s / substeps``.
     counts_per_motor_rad : float
-        Motor encoder resolution [counts/rad], > 0.
+        Position counts per motor radian (the unit of targets and positions), > 0.
     model : {"auto", "rigid", "two_mass"}
         Plant model; "auto" asks :func:`hil_sim.plant.choose_model`.
     excitation_hz : float
@@ -122,46 +178,64 @@ class ServoAxis:
         Motor position at start [counts]; the axis starts at rest there with zero error.
     model_factor : float
         Separation factor handed to :func:`choose_model`.
+    plant_effects : MechanicalEffects, optional
+        Backlash (needs the two-mass model: it forces it), Coulomb friction, coupling inertia.
+    drive_effects : DriveEffects, optional
+        Encoder and speed estimate, current loop, computation delay; default an ideal drive.
+    feedforward : {"target", "offset"}
+        Where the feed-forward comes from (see the notes).
 
     Notes
     -----
-    Per controller period, everything sampled at its start and the torque then held::
+    Per controller period i of the cycle (t = i dt), from the readings at its start::
 
-        speed_cmd = sqrt_limit(position_kp (theta_ref - theta)) + vff omega_ff + offset_ref
-        torque    = clamp(velocity_kp e + velocity_ki integral(e) + aff (J_eq alpha_ff
-                                                                        + b_eq omega_ff))
+        speed_cmd = sqrt_limit(position_kp (theta_ref(t) - theta)) + vff omega_ref(t) [+ offset]
+        torque    = clamp(velocity_kp e + velocity_ki integral(e)
+                          + aff (J_eq alpha_ref(t) + b_eq omega_ref(t)))
         e         = speed_cmd - omega
 
-    * theta_ref is the linear interpolation from the previous to the current target; it
-      reaches the target at the end of the cycle, where the following error is read.
-      offset_ref ramps the same way between the last two velocity offsets.
-    * omega_ff and alpha_ff come from the parabola through the last three targets, not from
-      the straight line, whose acceleration is an impulse at each SYNC (measured on a
-      cycloid: 46 counts of following error instead of 132).
+    * ``feedforward="offset"`` (a master that streams the velocity offset 0x60B1 with each
+      target, or the drive-side cam): theta_ref is the linear interpolation of the targets
+      (CiA 402 0x60C0 = 0), omega_ref the velocity offset ramped between its last two values
+      and alpha_ref their difference over the cycle; no difference of integer targets is taken,
+      so the feed-forward does not grow with the cycle rate or with SYNC jitter.
+    * ``feedforward="target"`` (a master that streams targets only): theta_ref is the linear
+      interpolation of the targets (CiA 402 0x60C0 = 0); omega_ref and alpha_ref come from the
+      parabola through the last three targets, the acceleration through a first-order low-pass of
+      :data:`TARGET_ACCELERATION_FILTER_S`; a velocity offset, if any, is ramped between its last
+      two values and added to the speed command.
     * The torque is clamped to ``mechanics.motor_torque_limit``; while clamped the integrator
-      only integrates errors that pull it out of the limit (conditional integration), and
-      the position correction never asks for more speed than half the limited acceleration
-      can brake within the remaining error (square-root law), so a torque-limited axis
-      recovers instead of overshooting into a limit cycle.
-    * Feedback is ideal (exact angle and speed, no computation delay). An undamped coupling
-      (``coupling_damping`` 0) whose mode lies above the controller's Nyquist frequency can
-      be destabilized by the sampled loop, as on a real drive; give the coupling its small
-      real damping (a damping ratio of 1e-3 is enough at 1e9 N m/rad).
-    * A master that sends the full target speed as velocity offset (0x60B1) should set
-      ``velocity_feedforward`` to 0, or the speed is fed forward twice.
+      only integrates errors that pull it out of the limit (conditional integration), and the
+      position correction never asks for more speed than half the limited acceleration can
+      brake within the remaining error (square-root law), so a torque-limited axis recovers
+      instead of overshooting into a limit cycle.
+    * theta and omega are the encoder's reading and speed estimate with
+      ``drive_effects.encoder_counts_per_rev``, else exact; the torque goes through the current
+      loop when it is modelled, and is applied one period late with the computation delay.
+    * An undamped coupling whose mode lies above the controller's Nyquist frequency can be
+      destabilized by the sampled loop, as on a real drive; give the coupling its small real
+      damping (a damping ratio of 1e-3 is enough at 1e9 N m/rad).
     """
 
     def __init__(self, mechanics: Mechanics, gains: Gains | None = None, cycle_s: float = 1e-3,
                  substeps: int = 16,
                  counts_per_motor_rad: float = _DEFAULT_COUNTS_PER_MOTOR_RAD,
                  model: str = "auto", excitation_hz: float = 0.0, initial_counts: int = 0,
-                 model_factor: float = 10.0) -> None:
+                 model_factor: float = 10.0, plant_effects: MechanicalEffects | None = None,
+                 drive_effects: DriveEffects | None = None, feedforward: str = "target") -> None:
         if not isinstance(mechanics, Mechanics):
             raise fail("mechanics", mechanics, "a Mechanics")
         if gains is None:
             gains = Gains.from_mechanics(mechanics)
         if not isinstance(gains, Gains):
             raise fail("gains", gains, "a Gains")
+        plant_effects = MechanicalEffects() if plant_effects is None else plant_effects
+        if not isinstance(plant_effects, MechanicalEffects):
+            raise fail("plant_effects", plant_effects, "a MechanicalEffects")
+        drive_effects = DriveEffects() if drive_effects is None else drive_effects
+        if not isinstance(drive_effects, DriveEffects):
+            raise fail("drive_effects", drive_effects, "a DriveEffects")
+        self.feedforward = choice("feedforward", feedforward, FEEDFORWARD_SOURCES)
         self.cycle_s = positive("cycle_s", plain(cycle_s))
         substeps = integer("substeps", plain(substeps), minimum=1)
         self.counts_per_motor_rad = positive("counts_per_motor_rad", plain(counts_per_motor_rad))
@@ -170,11 +244,14 @@ class ServoAxis:
         self.gains = gains
         self.substeps = substeps
         self.dt = self.cycle_s / substeps
+        self.plant_effects = plant_effects
+        self.drive_effects = drive_effects
 
         choice("model", model, MODELS)
         if model == "auto":
             self.model, self.model_reason = choose_model(
-                mechanics, excitation_hz, gains.velocity_bandwidth_hz(mechanics), model_factor)
+                mechanics, excitation_hz, gains.velocity_bandwidth_hz(mechanics), model_factor,
+                control_rate_hz=1.0 / self.dt, current_loop_hz=drive_effects.current_loop_hz)
         elif model == "rigid":
             self.model = "rigid"
             self.model_reason = ("rigid model: chosen by the caller." if mechanics.is_rigid else
@@ -187,26 +264,55 @@ class ServoAxis:
             self.model = "two_mass"
             self.model_reason = (f"two-mass model: chosen by the caller (coupling mode at "
                                  f"{mechanics.torsional_frequency_hz():.4g} Hz).")
-        plant_class = RigidPlant if self.model == "rigid" else TwoMassPlant
-        self.plant = plant_class(mechanics, self.dt)
-        self.plant.reset(motor_angle=initial_counts / self.counts_per_motor_rad)
+        if plant_effects.gear_backlash and self.model == "rigid":
+            if mechanics.is_rigid:
+                raise fail("gear_backlash", plant_effects.gear_backlash,
+                           "0 on an axis without coupling_stiffness (backlash sits in series "
+                           "with the coupling spring)")
+            self.model = "two_mass"
+            self.model_reason = (f"two-mass model: the gear backlash needs it (coupling mode at "
+                                 f"{mechanics.torsional_frequency_hz():.4g} Hz).")
+        self.plant = Plant(mechanics, self.dt, model=self.model, effects=plant_effects,
+                           current_loop_hz=drive_effects.current_loop_hz)
+        if drive_effects.encoder_counts_per_rev is None:
+            self.feedback = IdealFeedback()
+        else:
+            self.feedback = Encoder(drive_effects.encoder_counts_per_rev,
+                                    drive_effects.velocity_filter_hz, self.dt)
+        self._delay = drive_effects.computation_delay
+        # A notch at or above the controller's Nyquist frequency cannot be run (a drive's
+        # tuning tool refuses it): none then, e.g. while 0x60C2 still holds its power-on value.
+        self._notch = (Notch(gains.notch_hz, gains.notch_width, gains.notch_depth_db, self.dt)
+                       if 0.0 < gains.notch_hz < 0.5 / self.dt else None)
 
-        self._j_eq = mechanics.reflected_inertia()
+        self._j_eq = self.plant.mechanics.reflected_inertia() + (
+            plant_effects.coupling_inertia * mechanics.gear_ratio**2 / mechanics.gear_efficiency)
         self._b_eq = mechanics.reflected_damping()
         limit = mechanics.motor_torque_limit
         self._torque_limit = math.inf if limit is None else limit
         # Half the acceleration the torque limit allows: the square-root law of the
         # position loop brakes with it, keeping the other half for the feed-forward.
         self._catch_up_acceleration = 0.5 * self._torque_limit / self._j_eq
-        # Targets: the last one as the caller numbered it, and an unwrapped copy (int32 wrap).
-        self._target_raw = initial_counts
-        self._target = initial_counts
-        self._reference_speed = 0.0  # slope of the current interpolation [rad/s]
-        self._offset = 0.0  # last velocity offset [rad/s]
-        self._integral = 0.0  # integral of the speed error [rad]
+        self._acceleration_filter = 1.0 - math.exp(-self.cycle_s / TARGET_ACCELERATION_FILTER_S)
+        self._place(initial_counts)
         self._cycles = 0
         self._peaks = (0.0, 0.0, 0.0)
         self._saturated = False
+
+    def _place(self, counts: int, speed: float = 0.0) -> None:
+        """The axis at ``counts`` turning at ``speed`` [rad/s], the references on it."""
+        angle = counts / self.counts_per_motor_rad
+        self.plant.reset(motor_angle=angle, motor_speed=speed)
+        self.feedback.reset(angle, speed)
+        self._measured = self.feedback.sample(angle, speed)
+        # Targets: the last one as the caller numbered it, and an unwrapped copy (int32 wrap).
+        self._target_raw = counts
+        self._target = counts
+        self._reference_speed = 0.0  # target mode: slope of the current interpolation [rad/s]
+        self._acceleration = 0.0  # target mode: filtered acceleration feed-forward [rad/s^2]
+        self._offset = 0.0  # last velocity offset [rad/s]
+        self._integral = 0.0  # integral of the speed error [rad]
+        self._pending = 0.0  # torque computed, to be applied next period (computation delay)
 
     # ------------------------------------------------------------------ cycle
     def cycle(self, target_counts: int, velocity_offset_counts_per_s: float = 0.0) -> None:
@@ -215,12 +321,11 @@ class ServoAxis:
         Parameters
         ----------
         target_counts : int
-            Target position (0x607A) [counts]. The step from the previous target is taken
-            modulo 2^32 into [-2^31, 2^31), as a drive reads an INTEGER32 that wraps.
+            Target position (0x607A) [counts] for the end of the cycle. The step from the
+            previous target is taken modulo 2^32 into [-2^31, 2^31), as a drive reads an
+            INTEGER32 that wraps.
         velocity_offset_counts_per_s : float
-            Velocity offset (0x60B1) [counts/s]: the target speed at the target's own time.
-            It is ramped linearly from the previous offset across the cycle, as the
-            position is, and added to the speed command.
+            Velocity offset (0x60B1) [counts/s]: the target speed at the target's time.
         """
         target_counts = _counts("target_counts", target_counts)
         offset = number("velocity_offset_counts_per_s", plain(velocity_offset_counts_per_s))
@@ -230,62 +335,118 @@ class ServoAxis:
         self._target = start_counts + step_counts
 
         cpr = self.counts_per_motor_rad
-        gains = self.gains
-        # Feed-forward follows the parabola through the last three targets: the linear
-        # interpolation's own acceleration is a train of impulses at the SYNCs, while the
-        # parabola is smooth within the cycle and still ends on the target.
-        slope = step_counts / cpr / self.cycle_s
-        previous_slope, self._reference_speed = self._reference_speed, slope
-        acceleration_ff = (slope - previous_slope) / self.cycle_s
-        speed_at_start = 0.5 * (slope + previous_slope)
-        # The velocity offset is a sample at the target's time, like the target: ramp to it
-        # from the previous one, as the position is interpolated.
-        offset_start = self._offset
-        offset_step = offset / cpr - offset_start
-        self._offset = offset / cpr
+        t_cycle = self.cycle_s
         start_rad = start_counts / cpr
         step_rad = step_counts / cpr
+        offset_start, offset_end = self._offset, offset / cpr
+        self._offset = offset_end
+        # The reference over the cycle as a polynomial in the elapsed time s:
+        #   theta_ref = c0 + c1 s + c2 s^2 + c3 s^3, plus (target mode) the ramp of the offset.
+        if self.feedforward == "offset":
+            # Linear interpolation of the targets; the speed from the velocity offsets, ramped
+            # between the last two, and the acceleration as their difference over the cycle:
+            # no difference of integer targets, so nothing that grows with the cycle rate.
+            c0, c1, c2, c3 = start_rad, 0.0, 0.0, 0.0
+            reference_slope = step_rad / t_cycle
+            ramp_start = ramp_slope = 0.0
+            acceleration = (offset_end - offset_start) / t_cycle
+            ff_speed0, ff_speed1, ff_speed2 = offset_start, acceleration, 0.0
+            ff_acc0, ff_acc1 = acceleration, 0.0
+        else:
+            # Linear interpolation; feed-forward from the parabola through the last three
+            # targets (smooth within the cycle, unlike the line's impulses at each SYNC).
+            slope = step_rad / t_cycle
+            previous_slope, self._reference_speed = self._reference_speed, slope
+            raw_acceleration = (slope - previous_slope) / t_cycle
+            self._acceleration += self._acceleration_filter * (raw_acceleration
+                                                               - self._acceleration)
+            c0, c1, c2, c3 = start_rad, 0.0, 0.0, 0.0
+            reference_slope = slope
+            ramp_start, ramp_slope = offset_start, (offset_end - offset_start) / t_cycle
+            ff_speed0, ff_speed1, ff_speed2 = 0.5 * (slope + previous_slope), self._acceleration, 0.0
+            ff_acc0, ff_acc1 = self._acceleration, 0.0
+        self._run(c0, c1, c2, c3, reference_slope, ramp_start, ramp_slope,
+                  ff_speed0, ff_speed1, ff_speed2, ff_acc0, ff_acc1)
+        self._cycles += 1
+
+    def _run(self, c0, c1, c2, c3, reference_slope, ramp_start, ramp_slope,
+             ff_speed0, ff_speed1, ff_speed2, ff_acc0, ff_acc1) -> None:
+        """The controller periods of one cycle (the hot loop: everything looked up once)."""
+        gains = self.gains
+        kp, kv, ki = gains.position_kp, gains.velocity_kp, gains.velocity_ki
+        vff, aff = gains.velocity_feedforward, gains.acceleration_feedforward
+        j_eq, b_eq = self._j_eq, self._b_eq
         limit = self._torque_limit
-        catch_up_acceleration = self._catch_up_acceleration
+        catch_up = 2.0 * self._catch_up_acceleration
         limited = math.isfinite(limit)
         plant = self.plant
+        advance = plant.advance
+        sample = None if isinstance(self.feedback, IdealFeedback) else self.feedback.sample
+        delay = self._delay
+        notch = self._notch
+        pending = self._pending
+        integral = self._integral
+        angle, speed = self._measured
         dt = self.dt
-        n = self.substeps
         peak_torque = peak_coupling = peak_twist = 0.0
         saturated = False
-        for i in range(n):
-            # Sampled at the start of the controller period, whose torque the plant then
-            # holds; the reference arrives on the target as the cycle ends.
-            reference = start_rad + step_rad * (i / n)
-            speed_ff = speed_at_start + acceleration_ff * (i * dt)
-            position_error = reference - plant.motor_angle
-            correction = gains.position_kp * position_error
+        for i in range(self.substeps):
+            s = i * dt
+            # Sampled at the start of the controller period, whose torque the plant then holds.
+            reference = c0 + s * (reference_slope + c1 + s * (c2 + s * c3))
+            speed_ff = ff_speed0 + s * (ff_speed1 + s * ff_speed2)
+            position_error = reference - angle
+            correction = kp * position_error
             # Square-root law: never ask for more speed than can be braked to zero within
             # the remaining error, or a torque-limited axis overshoots into a limit cycle.
             if limited:
-                brake_speed = math.sqrt(2.0 * catch_up_acceleration * abs(position_error))
+                brake_speed = math.sqrt(catch_up * abs(position_error))
                 if abs(correction) > brake_speed:
                     correction = math.copysign(brake_speed, position_error)
-            speed_error = (correction + gains.velocity_feedforward * speed_ff
-                           + offset_start + offset_step * (i / n)
-                           - plant.motor_speed)
-            torque_ff = gains.acceleration_feedforward * (self._j_eq * acceleration_ff
-                                                          + self._b_eq * speed_ff)
-            wanted = (gains.velocity_kp * speed_error + gains.velocity_ki * self._integral
-                      + torque_ff)
+            speed_error = correction + vff * speed_ff + ramp_start + ramp_slope * s - speed
+            torque_ff = aff * (j_eq * (ff_acc0 + ff_acc1 * s) + b_eq * speed_ff)
+            wanted = kv * speed_error + ki * integral + torque_ff
+            if notch is not None:
+                wanted = notch(wanted)
             torque = min(max(wanted, -limit), limit)
             clamped = torque != wanted
             # Anti-windup: while clamped, integrate only errors that pull out of the limit.
             if not clamped or (speed_error > 0.0) != (wanted > 0.0):
-                self._integral += speed_error * dt
+                integral += speed_error * dt
             saturated = saturated or clamped
-            plant.step(torque)
-            peak_torque = max(peak_torque, abs(torque))
-            peak_coupling = max(peak_coupling, abs(plant.coupling_torque))
-            peak_twist = max(peak_twist, abs(plant.twist))
+            if delay:
+                pending, torque = torque, pending
+            angle, speed, coupling, twist = advance(torque)
+            if sample is not None:
+                angle, speed = sample(angle, speed)
+            # the peaks, by comparisons (max() calls cost more)
+            if torque > peak_torque or -torque > peak_torque:
+                peak_torque = abs(torque)
+            if coupling > peak_coupling or -coupling > peak_coupling:
+                peak_coupling = abs(coupling)
+            if twist > peak_twist or -twist > peak_twist:
+                peak_twist = abs(twist)
+        self._measured = (angle, speed)
+        self._pending = pending
+        self._integral = integral
         self._peaks = (peak_torque, peak_coupling, peak_twist)
         self._saturated = saturated
+
+    def coast(self) -> None:
+        """Run one bus cycle with the power stage off: no torque, the load coasts (friction and
+        damping slow it), the encoder still reads it; the targets follow the actual position."""
+        plant = self.plant
+        peak_coupling = peak_twist = 0.0
+        for _ in range(self.substeps):
+            plant.step(0.0)
+            peak_coupling = max(peak_coupling, abs(plant.coupling_torque))
+            peak_twist = max(peak_twist, abs(plant.wind_up))
+            self._measured = self.feedback.sample(plant.motor_angle, plant.motor_speed)
+        self._peaks = (0.0, peak_coupling, peak_twist)
+        self._saturated = False
+        self._pending = 0.0
         self._cycles += 1
+        self.restart()
 
     def restart(self) -> None:
         """Forget the previous targets: the next cycle starts from where the motor is.
@@ -297,16 +458,18 @@ class ServoAxis:
         counts = self._motor_counts()
         self._target_raw = self._target = counts
         self._reference_speed = 0.0
+        self._acceleration = 0.0
         self._offset = 0.0
         self._integral = 0.0
 
     # ------------------------------------------------------------- read-outs
     def _motor_counts(self) -> int:
-        return round(self.plant.motor_angle * self.counts_per_motor_rad)
+        """The measured motor position [counts] (the encoder's reading when it is modelled)."""
+        return round(self._measured[0] * self.counts_per_motor_rad)
 
     @property
     def position_counts(self) -> int:
-        """Motor encoder position (0x6064) [counts], rounded, numbered like the targets.
+        """Motor position actual value (0x6064) [counts], rounded, numbered like the targets.
 
         It is the last target minus the following error, so a caller that sends targets
         wrapped to INTEGER32 gets positions next to them.
@@ -314,14 +477,30 @@ class ServoAxis:
         return self._target_raw - self.following_error_counts
 
     @property
+    def velocity_counts_per_s(self) -> float:
+        """Velocity actual value (0x606C) [counts/s]: the drive's speed estimate."""
+        return self._measured[1] * self.counts_per_motor_rad
+
+    @property
     def following_error_counts(self) -> int:
-        """Target minus actual motor position (0x60F4) [counts] at the end of the last cycle."""
+        """Target minus measured motor position (0x60F4) [counts] at the end of the last cycle."""
         return self._target - self._motor_counts()
 
     @property
     def time_s(self) -> float:
         """Simulated time since start [s]."""
         return self._cycles * self.cycle_s
+
+    #: What :meth:`readings` returns, in order.
+    READINGS = ("load_angle", "coupling_torque", "peak_coupling_torque", "peak_twist",
+                "peak_motor_torque", "saturated")
+
+    def readings(self) -> tuple[float, ...]:
+        """The :data:`READINGS` of the last cycle (a lean :attr:`state` for recording runs)."""
+        plant = self.plant
+        peaks = self._peaks
+        return (plant.load_angle, plant.coupling_torque, peaks[1], peaks[2], peaks[0],
+                1.0 if self._saturated else 0.0)
 
     @property
     def state(self) -> dict[str, float]:
@@ -333,10 +512,11 @@ class ServoAxis:
             ``time_s`` [s]; ``target_angle``, ``motor_angle``, ``load_angle``, ``twist`` [rad]
             (motor side except load_angle, load side, and twist = r motor_angle - load_angle);
             ``motor_speed``, ``load_speed`` [rad/s]; ``coupling_torque`` [N m] (load side);
-            ``motor_torque`` [N m]; ``saturated`` (1.0 if the torque was clamped in any
-            controller period of the cycle, else 0.0); ``peak_motor_torque``,
-            ``peak_coupling_torque`` [N m] and ``peak_twist`` [rad]: largest magnitudes over
-            the cycle's controller periods.
+            ``motor_torque`` [N m] (the current loop's output, else the command);
+            ``saturated`` (1.0 if the torque was clamped in any controller period of the
+            cycle, else 0.0); ``peak_motor_torque`` (command), ``peak_coupling_torque`` [N m]
+            and ``peak_twist`` [rad] (the coupling spring's wind-up, beyond any backlash gap):
+            largest magnitudes over the cycle's controller periods.
         """
         plant = self.plant
         return {
@@ -348,7 +528,7 @@ class ServoAxis:
             "load_speed": plant.load_speed,
             "twist": plant.twist,
             "coupling_torque": plant.coupling_torque,
-            "motor_torque": plant.torque,
+            "motor_torque": plant.motor_torque,
             "saturated": 1.0 if self._saturated else 0.0,
             "peak_motor_torque": self._peaks[0],
             "peak_coupling_torque": self._peaks[1],
@@ -359,3 +539,33 @@ class ServoAxis:
 def _counts(field: str, value: object) -> int:
     """A raw count: a Python or numpy integer (not a float, not a bool)."""
     return integer(field, plain(value))
+
+
+@dataclass(frozen=True)
+class AxisSetup:
+    """Everything a :class:`ServoAxis` is built from but its cycle and start position: what a
+    drive is configured with. The drive and the rig's bus-free path build their axes from the
+    same setup, so they run the same arithmetic.
+
+    Attributes are :class:`ServoAxis`'s parameters of the same names; ``counts_per_motor_rad``
+    None takes ServoAxis's default.
+    """
+
+    mechanics: Mechanics
+    gains: Gains | None = None
+    substeps: int = 8
+    counts_per_motor_rad: float | None = None
+    model: str = "auto"
+    excitation_hz: float = 0.0
+    plant_effects: MechanicalEffects | None = None
+    drive_effects: DriveEffects | None = None
+    feedforward: str = "target"
+
+    def build(self, cycle_s: float, initial_counts: int) -> ServoAxis:
+        """A new axis at rest at ``initial_counts`` for an interpolation period of ``cycle_s``."""
+        extra = {} if self.counts_per_motor_rad is None else {
+            "counts_per_motor_rad": self.counts_per_motor_rad}
+        return ServoAxis(self.mechanics, self.gains, cycle_s=cycle_s, substeps=self.substeps,
+                         model=self.model, excitation_hz=self.excitation_hz,
+                         initial_counts=initial_counts, plant_effects=self.plant_effects,
+                         drive_effects=self.drive_effects, feedforward=self.feedforward, **extra)

@@ -399,8 +399,8 @@ def cam_in(cam: Cam, slave_position: float, master_position: float, master_speed
                        limits, ControlInterface.Position, minimum_duration=engage_s)
     if segment.duration > engage_s * (1.0 + 1e-9):
         raise SimulationError(
-            f"cam-in needs {segment.duration:.6g} s but the master reaches "
-            f"engage_master_position {engage} in {engage_s:.6g} s: engage further ahead")
+            f"cam-in needs {segment.duration:.6g} s but the master reaches the engagement "
+            f"point in {engage_s:.6g} s: engage further ahead")
 
     # The profile is exact in its last phase's end state; check the whole curve ourselves.
     times = segment.critical_times()

@@ -1,356 +1,479 @@
-"""Linear plant models of one axis, discretized exactly by zero-order hold.
+"""The axis a servo drive moves: motor, gear, coupling and load, stepped exactly.
 
-Each model is x' = A x + B u with the motor torque u held constant over a step of ``dt``. The
-step is exact: ``[[Phi, Gamma], [0, 1]] = expm([[A, B], [0, 0]] dt)``, so a coupling of
-1e9 N m/rad runs at the same step as one of 10 N m/rad (an explicit integrator would need a
-step below 2/omega, i.e. microseconds, to stay stable).
+One class, :class:`Plant`, runs every model the rig needs:
 
-The matrix exponential is written here (numpy only): balancing by powers of two, then
-scaling and squaring with the degree-13 Pade approximant of Higham (2005).
+* ``model="rigid"``: motor and load as one inertia J_eq at the motor shaft (the geared-system
+  seed: :meth:`Mechanics.reflected_inertia`, ``reflected_damping``);
+* ``model="two_mass"``: motor (with gear) and load joined by the coupling's torsional
+  spring-damper on the gear output::
+
+      J_m  motor_speed' = T - b_in motor_speed - g T_c - F_m
+      J_L  load_speed'  = T_c - b_out load_speed - F_L
+      twist'            = r motor_speed - load_speed,         g = r / eta
+      T_c = k (twist - d) + c twist'   (d = +-backlash/2 while the teeth touch)
+      T_c = 0                          inside the backlash gap
+
+and, around them, the effects a linear model leaves out (:class:`MechanicalEffects`): gear
+backlash (the gear output's free angle at the load shaft, in series with the coupling spring),
+Coulomb friction at the motor and at the load, the coupling's own inertia (half to each side of
+its spring); and, from the drive, the current loop's lag (``current_loop_hz``: the torque
+follows the command through a first-order lag, one more state).
+
+Stepping is exact for each linear piece (:mod:`hil_sim.discretize`): the mode (backlash gap or
+contact on either flank) is read from the twist at the start of a step, and that mode's
+zero-order-hold matrices advance the state with the torque command, the spring's flank offset
+and both friction torques held over the step. Coulomb friction is the torque in [-F, F] that
+the step needs: it stops a shaft exactly at zero speed within a step when it can (stiction),
+and opposes the motion at its full value when it cannot; with two frictional shafts both
+torques are found together (a projected Gauss-Seidel on the 2x2 system of end speeds, which is
+linear in them). A contact that begins inside a step is taken at the next step: the step should
+be short against the contact period (2 pi sqrt(J/k)), as the rig's controller period is.
+
+The two-mass state carries the twist instead of the load angle: that keeps the stiff terms away
+from the large, ever-growing angles, so no precision is lost to cancellation after many
+revolutions.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
+from ecam import validate
 from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
+from hil_sim.discretize import expm, linear_step, with_lag, zero_order_hold
 
-# Higham (2005), "The scaling and squaring method for the matrix exponential revisited",
-# Table 2.3 / eq. (2.3): coefficients b_0..b_13 of the [13/13] Pade approximant, and the
-# 1-norm below which it is accurate to double precision without scaling.
-_PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0,
-           1187353796428800.0, 129060195264000.0, 10559470521600.0, 670442572800.0,
-           33522128640.0, 1323241920.0, 40840800.0, 960960.0, 16380.0, 182.0, 1.0)
-_THETA13 = 5.371920351148152
+__all__ = ["ARCMIN", "MODELS_RUN", "MechanicalEffects", "Plant", "RigidPlant", "TwoMassPlant",
+           "FullPlant", "expm", "zero_order_hold", "choose_model", "significant_harmonic_hz"]
+
+ARCMIN = math.pi / (180.0 * 60.0)  # rad
+#: The plant models a run can use.
+MODELS_RUN = ("rigid", "two_mass")
+_STICTION_ITERATIONS = 12
+#: Steps per period of the coupling's contact mode at least, while backlash is modelled.
+CONTACT_STEPS = 16
 
 
-def _balance(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return (D^-1 A D, d) with d = diag(D) powers of two that even out row and column norms.
+@dataclass(frozen=True)
+class MechanicalEffects:
+    """Physical effects beyond the linear models, SI units; 0 leaves an effect out.
 
-    Physical states differ by many orders of magnitude (an angle and a speed of a 1e9 N m/rad
-    coupling); balancing shrinks the norm, so expm needs fewer squarings and loses less
-    precision. Powers of two make the similarity transform itself exact.
+    Attributes
+    ----------
+    gear_backlash : float
+        Free angle of the gear output at the load shaft [rad], >= 0, <= pi.
+    motor_coulomb_friction : float
+        Friction torque at the motor shaft that does not depend on speed [N m], >= 0 (bearings,
+        seals, the gearhead's no-load torque).
+    load_coulomb_friction : float
+        Friction torque at the load shaft [N m], >= 0 (guides, seals, bearings of the load).
+    coupling_inertia : float
+        Inertia of the coupling itself [kg m^2], >= 0: half on each side of its spring in the
+        two-mass model, all of it on the load in the rigid one.
+
+    :mod:`hil_sim.effects` says where typical values come from.
     """
-    b = a.copy()
-    d = np.ones(b.shape[0])
-    for _ in range(100):
-        changed = False
-        for i in range(b.shape[0]):
-            col = np.abs(b[:, i]).sum() - abs(b[i, i])
-            row = np.abs(b[i, :]).sum() - abs(b[i, i])
-            if col == 0.0 or row == 0.0:
-                continue  # an input column or a pure integrator row: nothing to even out
-            f = 2.0 ** round(0.5 * math.log2(row / col))
-            if col * f + row / f < 0.95 * (col + row):
-                b[:, i] *= f
-                b[i, :] /= f
-                d[i] *= f
-                changed = True
-        if not changed:
-            break
-    return b, d
+
+    gear_backlash: float = 0.0
+    motor_coulomb_friction: float = 0.0
+    load_coulomb_friction: float = 0.0
+    coupling_inertia: float = 0.0
+
+    def __post_init__(self):
+        for name in ("gear_backlash", "motor_coulomb_friction", "load_coulomb_friction",
+                     "coupling_inertia"):
+            object.__setattr__(self, name, validate.number(name, getattr(self, name),
+                                                           minimum=0.0))
+        if self.gear_backlash > math.pi:
+            raise validate.fail("gear_backlash", self.gear_backlash, "<= pi rad (half a turn)")
+
+    @property
+    def any(self) -> bool:
+        """True when any effect is on."""
+        return any((self.gear_backlash, self.motor_coulomb_friction, self.load_coulomb_friction,
+                    self.coupling_inertia))
 
 
-def expm(a: np.ndarray) -> np.ndarray:
-    """Matrix exponential of a real square matrix.
+@dataclass(frozen=True)
+class _Mode:
+    """One linear mode of a plant: its matrices, its step with the three inputs (torque, a
+    torque on the motor shaft, one on the load shaft) and with the torque alone, and the
+    columns of the two shaft torques as floats (the friction solve's)."""
+
+    phi: np.ndarray
+    gamma: np.ndarray
+    step: object
+    step_torque: object
+    motor_column: list
+    load_column: list
+
+
+class Plant:
+    """Motor, gear, coupling and load of one axis (see the module docstring).
 
     Parameters
     ----------
-    a : ndarray, shape (n, n)
-        Finite real matrix.
-
-    Returns
-    -------
-    ndarray, shape (n, n)
-        exp(a).
-
-    Raises
-    ------
-    InputError
-        If ``a`` is not square or not finite.
+    mechanics : Mechanics
+        The axis; ``coupling_stiffness`` must be given for ``model="two_mass"``.
+    dt : float
+        Step [s], > 0.
+    model : {"rigid", "two_mass"}
+    effects : MechanicalEffects, optional
+        Backlash, Coulomb friction, coupling inertia; backlash needs the two-mass model.
+    current_loop_hz : float, optional
+        Bandwidth of the drive's current loop [Hz]: the motor torque follows the command
+        through a first-order lag. None: the torque is the command.
 
     Notes
     -----
-    Balancing (diagonal similarity by powers of two), then scaling by 2^-s so that
-    ||a||_1 <= 5.37, the [13/13] Pade approximant, and s squarings (Higham 2005). Accurate
-    to a few ulps times the condition of the problem; validated against scipy in the tests.
+    ``x`` is [motor angle, motor speed] (rigid) or [motor angle, motor speed, twist, load
+    speed] (two-mass), rad and rad/s, followed by the motor torque [N m] when the current loop
+    is modelled.
     """
-    a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or a.shape[0] != a.shape[1]:
-        raise InputError(f"matrix shape {a.shape} should be square")
-    if not np.all(np.isfinite(a)):
-        raise InputError("matrix entries should be finite")
-    n = a.shape[0]
-    b, d = _balance(a)
-    norm = np.abs(b).sum(axis=0).max()
-    s = max(0, math.ceil(math.log2(norm / _THETA13))) if norm > 0.0 else 0
-    b = b / 2.0**s
-    c = _PADE13
-    ident = np.eye(n)
-    b2 = b @ b
-    b4 = b2 @ b2
-    b6 = b4 @ b2
-    u = b @ (b6 @ (c[13] * b6 + c[11] * b4 + c[9] * b2)
-             + c[7] * b6 + c[5] * b4 + c[3] * b2 + c[1] * ident)
-    v = (b6 @ (c[12] * b6 + c[10] * b4 + c[8] * b2)
-         + c[6] * b6 + c[4] * b4 + c[2] * b2 + c[0] * ident)
-    e = np.linalg.solve(v - u, v + u)
-    for _ in range(s):
-        e = e @ e
-    # Undo the balancing: exp(D^-1 A D) = D^-1 exp(A) D.
-    return e * d[:, None] / d[None, :]
 
-
-def zero_order_hold(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact discretization of x' = A x + B u with u held over ``dt``.
-
-    Parameters
-    ----------
-    a : ndarray, shape (n, n)
-        System matrix [1/s].
-    b : ndarray, shape (n, m)
-        Input matrix.
-    dt : float
-        Step [s], > 0.
-
-    Returns
-    -------
-    phi, gamma : ndarray, shapes (n, n) and (n, m)
-        x[k+1] = phi x[k] + gamma u[k].
-    """
-    n, m = b.shape
-    augmented = np.zeros((n + m, n + m))
-    augmented[:n, :n] = a * dt
-    augmented[:n, n:] = b * dt
-    e = expm(augmented)
-    return e[:n, :n].copy(), e[:n, n:].copy()
-
-
-def _unrolled_step(phi: np.ndarray, gamma: np.ndarray):
-    """x -> phi x + gamma u for a small n, as straight-line float arithmetic (same sums, same
-    order of terms as the matrix product, so the result does not depend on the path)."""
-    n = phi.shape[0]
-    rows = [[float(v) for v in row] for row in phi]
-    g = [float(v) for v in gamma]
-    if n == 2:
-        (a, b), (c, d) = rows
-        g0, g1 = g
-
-        def advance(x, u):
-            x0, x1 = x
-            return [a * x0 + b * x1 + g0 * u, c * x0 + d * x1 + g1 * u]
-        return advance
-    if n == 4:
-        (a0, a1, a2, a3), (b0, b1, b2, b3), (c0, c1, c2, c3), (d0, d1, d2, d3) = rows
-        g0, g1, g2, g3 = g
-
-        def advance(x, u):
-            x0, x1, x2, x3 = x
-            return [a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3 + g0 * u,
-                    b0 * x0 + b1 * x1 + b2 * x2 + b3 * x3 + g1 * u,
-                    c0 * x0 + c1 * x1 + c2 * x2 + c3 * x3 + g2 * u,
-                    d0 * x0 + d1 * x1 + d2 * x2 + d3 * x3 + g3 * u]
-        return advance
-
-    def advance(x, u):
-        return [sum(r * xi for r, xi in zip(row, x)) + gi * u for row, gi in zip(rows, g)]
-    return advance
-
-
-class _LinearPlant:
-    """Shared stepping of a ZOH-discretized plant; subclasses define A, B and the outputs."""
-
-    def __init__(self, mechanics: Mechanics, dt: float, a: np.ndarray, b: np.ndarray) -> None:
+    def __init__(self, mechanics: Mechanics, dt: float, model: str = "two_mass",
+                 effects: MechanicalEffects | None = None,
+                 current_loop_hz: float | None = None) -> None:
         if not isinstance(mechanics, Mechanics):
             raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
-        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (
-                math.isfinite(dt) and dt > 0.0):
-            raise InputError(f"dt {dt!r} should be a finite number > 0")
-        self.mechanics = mechanics
-        self.dt = float(dt)
-        phi, gamma = zero_order_hold(a, b, self.dt)
+        self.dt = validate.positive("dt", dt)
+        validate.choice("model", model, MODELS_RUN)
+        effects = MechanicalEffects() if effects is None else effects
+        if not isinstance(effects, MechanicalEffects):
+            raise InputError(f"effects {effects!r} should be a MechanicalEffects")
+        if model == "two_mass" and mechanics.coupling_stiffness is None:
+            raise InputError("coupling_stiffness None should be > 0 for a two_mass plant")
+        if effects.gear_backlash and model != "two_mass":
+            raise validate.fail("gear_backlash", effects.gear_backlash,
+                                "0 in the rigid model (backlash sits in series with the "
+                                "coupling spring: use the two-mass model)")
+        if current_loop_hz is not None:
+            current_loop_hz = validate.positive("current_loop_hz", current_loop_hz)
+        self.mechanics = m = mechanics
+        self.model = model
+        self.effects = effects
+        self.current_loop_hz = current_loop_hz
+        r, eta = m.gear_ratio, m.gear_efficiency
+        self._r = r
+        self._g = g = r / eta
+        jc = effects.coupling_inertia
+        # Backlash: the teeth meet inside a step, and the contact is taken at a step's start,
+        # so a step must be short against the contact's period or the impact is overshot:
+        # at most 1/CONTACT_STEPS of it, by sub-steps with the torque held (still exact).
+        self._inner = 1
+        if effects.gear_backlash and model == "two_mass":
+            contact_hz = m.torsional_frequency_hz()
+            self._inner = max(1, math.ceil(self.dt * contact_hz * CONTACT_STEPS))
+        self._step_dt = self.dt / self._inner
+        if model == "rigid":
+            self._jl = jl = m.load_inertia + jc
+            self._j_eq = j_eq = m.motor_inertia + jl * r * r / eta
+            self._b_eq = b_eq = m.reflected_damping()
+            # inputs: motor torque, a torque on the motor shaft, one on the load shaft
+            a = np.array([[0.0, 1.0], [0.0, -b_eq / j_eq]])
+            b = np.array([[0.0, 0.0, 0.0], [1.0 / j_eq, 1.0 / j_eq, g / j_eq]])
+            self._contact, self._gap = self._discretize(a, b), None
+            self._k = self._c = 0.0
+            self._speeds = (1, 1)  # the shaft speeds friction acts on (state indexes)
+        else:
+            self._jm = jm = m.motor_inertia + 0.5 * jc * r * r / eta
+            self._jl = jl = m.load_inertia + 0.5 * jc
+            self._k, self._c = k, c = m.coupling_stiffness, m.coupling_damping
+
+            def system(k_, c_):
+                a = np.array([
+                    [0.0, 1.0, 0.0, 0.0],
+                    [0.0, -(m.motor_damping + g * c_ * r) / jm, -g * k_ / jm, g * c_ / jm],
+                    [0.0, r, 0.0, -1.0],
+                    [0.0, c_ * r / jl, k_ / jl, -(c_ + m.load_damping) / jl],
+                ])
+                b = np.array([[0.0, 0.0, 0.0], [1.0 / jm, 1.0 / jm, 0.0], [0.0, 0.0, 0.0],
+                              [0.0, 0.0, 1.0 / jl]])
+                return self._discretize(a, b)
+
+            self._contact = system(k, c)
+            self._gap = system(0.0, 0.0) if effects.gear_backlash else None
+            self._speeds = (1, 3)
+        self._half_gap = 0.5 * effects.gear_backlash
+        phi = self._contact.phi
+        #: x[k+1] = phi x[k] + gamma T[k] (the motor torque's column) in contact, no friction
+        self.phi, self.gamma = phi, self._contact.gamma[:, 0]
+        self._lag = current_loop_hz is not None
+        self._torque_state = phi.shape[0] - 1 if self._lag else None
+        self._frictional = bool(effects.motor_coulomb_friction or effects.load_coulomb_friction)
+        if model == "rigid":  # one shaft: both frictions act on it (the load's through the gear)
+            self._friction_limits = (effects.motor_coulomb_friction
+                                     + g * effects.load_coulomb_friction, 0.0)
+        else:
+            self._friction_limits = (effects.motor_coulomb_friction,
+                                     effects.load_coulomb_friction)
+        self._x = [0.0] * phi.shape[0]
+        self._torque = 0.0  # the last command
+        self._friction = (0.0, 0.0)
+        self.advance = self._advance_function()
+
+    def _discretize(self, a: np.ndarray, b: np.ndarray) -> "_Mode":
+        """The stepping of one linear mode."""
+        if self.current_loop_hz is not None:
+            a, b = with_lag(a, b, self.current_loop_hz)
+        phi, gamma = zero_order_hold(a, b, self._step_dt)
         if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(gamma))):
-            raise SimulationError(f"discretization at dt {dt} gave non-finite matrices")
+            raise SimulationError(f"discretization at dt {self.dt} gave non-finite matrices")
         phi.setflags(write=False)
         gamma.setflags(write=False)
-        self.phi = phi
-        self.gamma = gamma[:, 0].copy()
-        self.gamma.setflags(write=False)
-        # The state is a list of floats and the step is unrolled: a 2x2 or 4x4 numpy product
-        # costs more in call overhead than the arithmetic, and the rig runs it 4..16 times a cycle.
-        self._advance = _unrolled_step(phi, self.gamma)
-        self._x = [0.0] * phi.shape[0]
+        return _Mode(phi, gamma, linear_step(phi, gamma), linear_step(phi, gamma[:, :1]),
+                     [float(v) for v in gamma[:, 1]], [float(v) for v in gamma[:, 2]])
+
+    # -------------------------------------------------------------------- state
+    def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
+        """Place the axis at ``motor_angle`` [rad] turning at ``motor_speed`` [rad/s], no twist,
+        no torque."""
+        x = [float(motor_angle), float(motor_speed)]
+        if self.model == "two_mass":
+            x += [0.0, self._r * float(motor_speed)]
+        if self._lag:
+            x.append(0.0)
+        self._x = x
         self._torque = 0.0
+        self._friction = (0.0, 0.0)
 
     @property
     def x(self) -> np.ndarray:
-        """Copy of the internal state vector (see the class docstring for its layout)."""
+        """Copy of the state vector (see the class notes for its layout)."""
         return np.array(self._x)
 
+    # --------------------------------------------------------------------- step
+    def step(self, torque: float) -> None:
+        """Advance one step of ``dt`` with the motor torque command held at ``torque`` [N m]."""
+        self._torque = torque = float(torque)
+        x = self._x
+        if self._half_gap:
+            h = self._half_gap
+            for _ in range(self._inner):
+                twist = x[2]
+                mode, offset = ((self._contact, h) if twist > h else
+                                (self._contact, -h) if twist < -h else (self._gap, 0.0))
+                # The flank offset moves the spring's zero: T_c = k (twist - d) + ..., i.e. an
+                # extra torque +g k d on the motor and -k d on the load, held over the step.
+                spring = self._k * offset
+                x = mode.step(x, torque, self._g * spring, -spring)
+                if self._frictional:
+                    x = self._with_friction(x, mode)
+            self._x = x
+            return
+        if self._frictional:
+            mode = self._contact
+            free = mode.step(x, torque, 0.0, 0.0)
+        else:
+            self._x = self._contact.step_torque(x, torque)
+            return
+        self._x = self._with_friction(free, mode)
+
+    def _advance_function(self):
+        """``advance(torque) -> (motor angle, motor speed, coupling torque, wind-up)``: one
+        :meth:`step` and the readings a controller period needs, in one call. The linear models
+        (no backlash, no friction) get a function of their own: the rig calls it several times
+        per bus cycle, and attribute lookups cost more than their arithmetic."""
+        step = self._contact.step_torque
+        plant = self
+        if self.model == "two_mass" and (self._half_gap or self._frictional):
+            k, c, r, h = self._k, self._c, self._r, self._half_gap
+            full_step = self.step
+
+            def advance(torque):
+                full_step(torque)
+                x = plant._x
+                twist = x[2]
+                if twist > h:
+                    wind = twist - h
+                elif twist < -h:
+                    wind = twist + h
+                else:
+                    return x[0], x[1], 0.0, 0.0  # inside the backlash gap
+                return x[0], x[1], k * wind + c * (r * x[1] - x[3]), wind
+            return advance
+        if self._frictional:
+            def advance(torque):
+                plant.step(torque)
+                x = plant._x
+                return x[0], x[1], plant.coupling_torque, 0.0
+            return advance
+        if self.model == "two_mass":
+            k, c, r = self._k, self._c, self._r
+
+            def advance(torque):
+                x = step(plant._x, torque)
+                plant._x = x
+                plant._torque = torque
+                twist = x[2]
+                return x[0], x[1], k * twist + c * (r * x[1] - x[3]), twist
+            return advance
+        load_inertia = self._jl * self._r / self._j_eq
+        b_eq, load_damping = self._b_eq, self.mechanics.load_damping * self._r
+        lag = self._torque_state
+
+        def advance(torque):
+            x = step(plant._x, torque)
+            plant._x = x
+            plant._torque = torque
+            applied = torque if lag is None else x[lag]
+            # what the load needs: J_L alpha_L + b_out omega_L (see coupling_torque)
+            return (x[0], x[1],
+                    load_inertia * (applied - b_eq * x[1]) + load_damping * x[1], 0.0)
+        return advance
+
+    def _with_friction(self, free: list, mode: _Mode) -> list:
+        """The end state with the Coulomb friction torques the step needs (module docstring)."""
+        limit_m, limit_l = self._friction_limits
+        i_m, i_l = self._speeds
+        motor, load = mode.motor_column, mode.load_column
+        # End speeds are linear in the two friction torques: w_end = free + G f.
+        g11, g12, g21, g22 = motor[i_m], load[i_m], motor[i_l], load[i_l]
+        v_m, v_l = free[i_m], free[i_l]
+        f_m = f_l = 0.0
+        for _ in range(_STICTION_ITERATIONS if limit_m and limit_l else 1):
+            previous_m, previous_l = f_m, f_l
+            if limit_m:
+                f_m = -(v_m + g12 * f_l) / g11
+                f_m = limit_m if f_m > limit_m else (-limit_m if f_m < -limit_m else f_m)
+            if limit_l:
+                f_l = -(v_l + g21 * f_m) / g22
+                f_l = limit_l if f_l > limit_l else (-limit_l if f_l < -limit_l else f_l)
+            if f_m == previous_m and f_l == previous_l:  # converged (both sliding: at once)
+                break
+        if f_l:
+            out = [v + a * f_m + b * f_l for v, a, b in zip(free, motor, load)]
+        else:
+            out = [v + a * f_m for v, a in zip(free, motor)]
+        # A shaft held by stiction ends exactly at rest, not at a rounding residue.
+        if limit_m and -limit_m < f_m < limit_m:
+            out[i_m] = 0.0
+        if limit_l and -limit_l < f_l < limit_l:
+            out[i_l] = 0.0
+        self._friction = (f_m, f_l)
+        return out
+
+    # ------------------------------------------------------------------ read-outs
     @property
     def torque(self) -> float:
-        """Motor torque applied during the last step [N m]."""
+        """Motor torque command of the last step [N m]."""
         return self._torque
 
-    def step(self, torque: float) -> None:
-        """Advance one step of ``dt`` with the motor torque held at ``torque`` [N m]."""
-        self._torque = float(torque)
-        self._x = self._advance(self._x, self._torque)
+    @property
+    def motor_torque(self) -> float:
+        """Motor torque at the end of the last step [N m]: the current loop's output, or the
+        command when the current loop is not modelled."""
+        return self._x[self._torque_state] if self._lag else self._torque
+
+    @property
+    def friction_torques(self) -> tuple[float, float]:
+        """(motor, load) friction torques of the last step [N m], signed as applied (rigid:
+        both at the motor, in the first)."""
+        return self._friction
 
     @property
     def motor_angle(self) -> float:
         """Motor shaft angle [rad]."""
-        return float(self._x[0])
+        return self._x[0]
 
     @property
     def motor_speed(self) -> float:
         """Motor shaft speed [rad/s]."""
-        return float(self._x[1])
-
-
-class RigidPlant(_LinearPlant):
-    """Motor and load as one inertia J_eq at the motor shaft (no coupling compliance).
-
-    State x = [motor angle (rad), motor speed (rad/s)]; input: motor torque (N m).
-    J_eq and b_eq follow the seed (:meth:`Mechanics.reflected_inertia`, ``reflected_damping``).
-
-    Parameters
-    ----------
-    mechanics : Mechanics
-        The axis; its coupling stiffness, if any, is ignored.
-    dt : float
-        Step [s].
-    """
-
-    def __init__(self, mechanics: Mechanics, dt: float) -> None:
-        if not isinstance(mechanics, Mechanics):
-            raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
-        self._j_eq = j_eq = mechanics.reflected_inertia()
-        self._b_eq = b_eq = mechanics.reflected_damping()
-        a = np.array([[0.0, 1.0], [0.0, -b_eq / j_eq]])
-        b = np.array([[0.0], [1.0 / j_eq]])
-        super().__init__(mechanics, dt, a, b)
-
-    def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
-        """Place the axis at ``motor_angle`` [rad] turning at ``motor_speed`` [rad/s]."""
-        self._x = [float(motor_angle), float(motor_speed)]
-        self._torque = 0.0
-
-    @property
-    def load_angle(self) -> float:
-        """Load angle, r times the motor angle [rad]."""
-        return self.mechanics.gear_ratio * self.motor_angle
-
-    @property
-    def load_speed(self) -> float:
-        """Load speed [rad/s]."""
-        return self.mechanics.gear_ratio * self.motor_speed
+        return self._x[1]
 
     @property
     def twist(self) -> float:
-        """Coupling wind-up angle: always 0 in the rigid model [rad]."""
-        return 0.0
+        """r motor_angle - load_angle [rad]: the backlash gap plus the spring's wind-up (0 in
+        the rigid model)."""
+        return self._x[2] if self.model == "two_mass" else 0.0
 
     @property
-    def coupling_torque(self) -> float:
-        """Torque the load needs, J_load alpha_load + b_out omega_load [N m] (load side).
-
-        A rigid model has no spring to read; this is what a coupling would transmit, so
-        torque checks against the coupling rating still mean something. The acceleration is
-        the one at the current state under the last applied torque.
-        """
-        m = self.mechanics
-        motor_acceleration = (self._torque - self._b_eq * self.motor_speed) / self._j_eq
-        return (m.load_inertia * m.gear_ratio * motor_acceleration
-                + m.load_damping * self.load_speed)
-
-
-class TwoMassPlant(_LinearPlant):
-    """Motor (with gear) and load joined by a torsional spring-damper on the gear output.
-
-    Equations (r gear ratio, eta efficiency, T_c coupling torque on the load side)::
-
-        J_m  motor_speed' = T - b_in motor_speed - (r / eta) T_c
-        J_L  load_speed'  = T_c - b_out load_speed
-        T_c = k twist + c twist',      twist = r motor_angle - load_angle
-
-    The internal state is x = [motor angle, motor speed, twist, load speed] (rad, rad/s):
-    carrying the twist instead of the load angle keeps the stiff terms away from the large,
-    ever-growing angles, so no precision is lost to cancellation after many revolutions.
-    ``load_angle`` is derived as r motor_angle - twist.
-
-    Parameters
-    ----------
-    mechanics : Mechanics
-        The axis; ``coupling_stiffness`` must be given.
-    dt : float
-        Step [s].
-    """
-
-    def __init__(self, mechanics: Mechanics, dt: float) -> None:
-        if not isinstance(mechanics, Mechanics):
-            raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
-        if mechanics.coupling_stiffness is None:
-            raise InputError("coupling_stiffness None should be > 0 for a two_mass plant")
-        m = mechanics
-        r, eta = m.gear_ratio, m.gear_efficiency
-        k, c = m.coupling_stiffness, m.coupling_damping
-        jm, jl = m.motor_inertia, m.load_inertia
-        g = r / eta
-        a = np.array([
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, -(m.motor_damping + g * c * r) / jm, -g * k / jm, g * c / jm],
-            [0.0, r, 0.0, -1.0],
-            [0.0, c * r / jl, k / jl, -(c + m.load_damping) / jl],
-        ])
-        b = np.array([[0.0], [1.0 / jm], [0.0], [0.0]])
-        super().__init__(mechanics, dt, a, b)
-
-    def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
-        """Place the axis at ``motor_angle`` [rad] turning at ``motor_speed`` [rad/s], no twist."""
-        r = self.mechanics.gear_ratio
-        self._x = [float(motor_angle), float(motor_speed), 0.0, r * float(motor_speed)]
-        self._torque = 0.0
-
-    @property
-    def twist(self) -> float:
-        """Coupling wind-up, r motor_angle - load_angle [rad]."""
-        return float(self._x[2])
+    def wind_up(self) -> float:
+        """The coupling spring's own twist, beyond the backlash gap [rad]."""
+        t, h = self.twist, self._half_gap
+        return t - math.copysign(h, t) if abs(t) > h else 0.0
 
     @property
     def load_angle(self) -> float:
         """Load angle [rad]."""
-        return self.mechanics.gear_ratio * float(self._x[0]) - float(self._x[2])
+        return self._r * self._x[0] - (self._x[2] if self.model == "two_mass" else 0.0)
 
     @property
     def load_speed(self) -> float:
         """Load speed [rad/s]."""
-        return float(self._x[3])
+        return self._x[3] if self.model == "two_mass" else self._r * self._x[1]
 
     @property
     def coupling_torque(self) -> float:
-        """Torque in the coupling, k twist + c twist' [N m] (load side)."""
-        m = self.mechanics
-        twist_rate = m.gear_ratio * float(self._x[1]) - float(self._x[3])
-        return m.coupling_stiffness * self.twist + m.coupling_damping * twist_rate
+        """Torque in the coupling [N m] (load side).
+
+        Two-mass: k (twist - d) + c twist', 0 inside the backlash gap. Rigid: there is no spring
+        to read; this is what a coupling would transmit, J_L alpha_L + b_out omega_L plus the
+        load's friction, so torque checks against the coupling rating still mean something (the
+        acceleration is the one at the current state under the last torque).
+        """
+        x = self._x
+        if self.model == "two_mass":
+            t, h = x[2], self._half_gap
+            if h and abs(t) <= h:
+                return 0.0
+            rate = self._r * x[1] - x[3]
+            return self._k * self.wind_up + self._c * rate
+        friction, limit = self._friction[0], self._friction_limits[0]
+        acceleration = (self.motor_torque - self._b_eq * x[1] + friction) / self._j_eq
+        # the load's share of the friction on the one shaft, at the load: F_L / (F_m + g F_L)
+        load_friction = friction * self.effects.load_coulomb_friction / limit if limit else 0.0
+        return (self._jl * self._r * acceleration + self.mechanics.load_damping * self.load_speed
+                - load_friction)
 
     def energy(self) -> float:
         """Stored energy, kinetic plus spring [J], counting the load side scaled by 1/eta.
 
-        With eta < 1 the model is not symmetric; dividing the load equation by eta makes it
-        a passive system (inertia J_L/eta, stiffness k/eta), whose energy is this function.
-        It never grows without input when all damping is >= 0.
+        With eta < 1 the model is not symmetric; dividing the load equation by eta makes it a
+        passive system (inertia J_L/eta, stiffness k/eta), whose energy is this function. It
+        never grows without input when all damping is >= 0.
         """
-        m = self.mechanics
-        eta = m.gear_efficiency
-        speed, twist, load_speed = float(self._x[1]), float(self._x[2]), float(self._x[3])
-        return 0.5 * (m.motor_inertia * speed**2
-                      + (m.load_inertia * load_speed**2 + m.coupling_stiffness * twist**2) / eta)
+        x = self._x
+        eta = self.mechanics.gear_efficiency
+        if self.model == "rigid":
+            return 0.5 * self._j_eq * x[1] ** 2
+        spring = self._k * self.wind_up ** 2
+        return 0.5 * (self._jm * x[1] ** 2 + (self._jl * x[3] ** 2 + spring) / eta)
 
 
+class RigidPlant(Plant):
+    """Motor and load as one inertia J_eq at the motor shaft (no coupling compliance).
+
+    State x = [motor angle (rad), motor speed (rad/s)]; input: motor torque (N m). Its coupling
+    stiffness, if any, is ignored.
+    """
+
+    def __init__(self, mechanics: Mechanics, dt: float) -> None:
+        super().__init__(mechanics, dt, model="rigid")
+
+
+class TwoMassPlant(Plant):
+    """Motor (with gear) and load joined by a torsional spring-damper on the gear output.
+
+    State x = [motor angle, motor speed, twist, load speed] (rad, rad/s); ``coupling_stiffness``
+    must be given.
+    """
+
+    def __init__(self, mechanics: Mechanics, dt: float) -> None:
+        super().__init__(mechanics, dt, model="two_mass")
+
+
+class FullPlant(Plant):
+    """The two-mass plant with backlash, Coulomb friction and coupling inertia."""
+
+    def __init__(self, mechanics: Mechanics, effects: MechanicalEffects, dt: float) -> None:
+        super().__init__(mechanics, dt, model="two_mass", effects=effects)
+
+
+# ------------------------------------------------------------------------- model choice
 def significant_harmonic_hz(acceleration: np.ndarray, period_s: float,
                             energy_fraction: float = 0.99) -> float:
     """Highest harmonic of a periodic cam motion that carries significant energy.
@@ -394,8 +517,9 @@ def significant_harmonic_hz(acceleration: np.ndarray, period_s: float,
 
 
 def choose_model(mechanics: Mechanics, excitation_hz: float, loop_bandwidth_hz: float,
-                 factor: float = 10.0) -> tuple[str, str]:
-    """Pick the simplest plant model faithful to the scene.
+                 factor: float = 10.0, control_rate_hz: float | None = None,
+                 current_loop_hz: float | None = None) -> tuple[str, str]:
+    """Pick the simplest plant model faithful to the scene, by rule.
 
     Parameters
     ----------
@@ -408,6 +532,14 @@ def choose_model(mechanics: Mechanics, excitation_hz: float, loop_bandwidth_hz: 
         Velocity-loop bandwidth of the drive [Hz], >= 0.
     factor : float
         Required separation, > 0: rigid when f_torsion >= factor * max(excitation, loop).
+    control_rate_hz : float, optional
+        The drive's controller rate [Hz]. A coupling mode above its Nyquist frequency (half
+        the rate) is beyond what the loop can damp and is rung by the torque's steps every
+        controller period, by how much depends on their size: the reason says so, and the
+        rig measures it (``fidelity = "auto"``, :mod:`hil_sim.rig.fidelity`), since a rule
+        cannot tell.
+    current_loop_hz : float, optional
+        The current loop's bandwidth [Hz]; None: an ideal torque (every step passes).
 
     Returns
     -------
@@ -432,6 +564,16 @@ def choose_model(mechanics: Mechanics, excitation_hz: float, loop_bandwidth_hz: 
     numbers = (f"the coupling mode at {torsion:.4g} Hz is {{}} {factor:g} x max(cam excitation "
                f"{excitation_hz:.4g} Hz, velocity loop {loop_bandwidth_hz:.4g} Hz) "
                f"= {needed:.4g} Hz")
-    if torsion >= needed:
-        return "rigid", "rigid model: " + numbers.format("at least") + "."
-    return "two_mass", "two-mass model: " + numbers.format("below") + "."
+    if torsion < needed:
+        return "two_mass", "two-mass model: " + numbers.format("below") + "."
+    if control_rate_hz is not None:
+        nyquist = 0.5 * validate.positive("control_rate_hz", control_rate_hz)
+        passes = current_loop_hz is None or torsion <= current_loop_hz
+        if torsion > nyquist and passes:
+            through = ("an ideal current loop" if current_loop_hz is None else
+                       f"the current loop ({current_loop_hz:.4g} Hz)")
+            return "rigid", ("rigid model: " + numbers.format("at least") + f", but it lies "
+                             f"above the controller's Nyquist frequency {nyquist:.4g} Hz and "
+                             f"{through} passes it: the torque steps of each controller period "
+                             f"ring it (measure it: fidelity auto).")
+    return "rigid", "rigid model: " + numbers.format("at least") + "."

@@ -30,6 +30,10 @@ class Check:
     unit : str
     detail : str
         Where or why, one line (e.g. the master position of the worst sample).
+    window : dict or None
+        The samples the check looked at, when not all of them: ``after_s`` (the settling time
+        left out [s]) and ``master`` ([start, end] master positions within the period; end <
+        start spans the seam).
     """
 
     name: str
@@ -38,6 +42,7 @@ class Check:
     passed: bool
     unit: str
     detail: str = ""
+    window: dict | None = None
 
     @property
     def ratio(self) -> float | None:
@@ -46,10 +51,20 @@ class Check:
             return None
         return self.value / self.limit
 
+    @property
+    def margin(self) -> float | None:
+        """(limit - value) / limit: the share of the limit left (negative when exceeded);
+        None without a value or a non-zero limit."""
+        ratio = self.ratio
+        return None if ratio is None else 1.0 - ratio
+
     def to_dict(self) -> dict:
-        return {"name": self.name, "value": _clean(self.value), "limit": _clean(self.limit),
-                "passed": self.passed, "unit": self.unit, "ratio": _clean(self.ratio),
-                "detail": self.detail}
+        out = {"name": self.name, "value": _clean(self.value), "limit": _clean(self.limit),
+               "passed": self.passed, "unit": self.unit, "ratio": _clean(self.ratio),
+               "margin": _clean(self.margin), "detail": self.detail}
+        if self.window is not None:
+            out["window"] = _clean(self.window)
+        return out
 
     def line(self) -> str:
         """One line of text: verdict, value, limit and by how much it is exceeded."""
@@ -61,15 +76,17 @@ class Check:
             text = f"{verdict}  {self.name}: {value} {self.unit}, limit {self.limit:.6g} {self.unit}"
             if not self.passed and self.ratio is not None:
                 text += f" (exceeded by {100.0 * (self.ratio - 1.0):.3g} %, x{self.ratio:.3g})"
+            elif self.passed and self.margin is not None:
+                text += f" (margin {100.0 * self.margin:.3g} %)"
         return text + (f"; {self.detail}" if self.detail else "")
 
 
-def check(name: str, value, limit, unit: str, detail: str = "") -> Check:
+def check(name: str, value, limit, unit: str, detail: str = "", window: dict | None = None) -> Check:
     """A check that passes when ``value <= limit`` (always, when ``limit`` is None)."""
     value = None if value is None else float(value)
     limit = None if limit is None else float(limit)
     passed = limit is None or (value is not None and value <= limit)
-    return Check(name, value, limit, passed, unit, detail)
+    return Check(name, value, limit, passed, unit, detail, window)
 
 
 @dataclass
@@ -135,6 +152,24 @@ class Report:
         return json.dumps(self.to_dict(timing=timing), indent=2, sort_keys=True,
                           allow_nan=False) + "\n"
 
+    def _effect_lines(self) -> list[str]:
+        """The effects that ran and were left out, and why."""
+        effects = self.summary.get("effects")
+        if not effects:
+            return []
+        head = f"effects (fidelity {self.summary.get('fidelity')}"
+        proof = self.summary.get("fidelity_proof")
+        if proof:
+            head += (f", measured on {proof['runs']} bus-free runs; reduced against full model: "
+                     f"largest difference {100 * proof['largest_difference']:.3g} % of a limit"
+                     + (f" ({proof['check']})" if proof.get("check") else "")
+                     + (", same verdicts" if proof["same_verdicts"] else ", VERDICTS DIFFER"))
+        lines = [head + "):"]
+        for e in effects:
+            state = "in " if e["included"] else "out"
+            lines.append(f"  {state}  {e['name']}: {e['value']}; {e['why']}")
+        return lines
+
     def to_text(self) -> str:
         """A human summary: verdict, model, every check, bus and timing."""
         lines = [f"scene {self.scene}: {'PASSED' if self.passed else 'FAILED'} after "
@@ -144,6 +179,11 @@ class Report:
         stopped = self.summary.get("stopped_early")
         if stopped:
             lines.append(f"stopped early: {stopped}")
+        mechanics = self.summary.get("mechanics", {})
+        if "gear" in mechanics:
+            lines.append(f"machine: {mechanics['gear']}, load/motor inertia ratio "
+                         f"{mechanics['inertia_ratio']:.3g}")
+        lines += self._effect_lines()
         lines += ["  " + c.line() for c in self.checks]
         bus = self.summary.get("bus", {})
         if bus:

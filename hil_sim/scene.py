@@ -11,10 +11,13 @@ Layout (units in the names or below; SI unless said otherwise)::
     name = "stiff_coupling"            # optional, default the file name
     description = "..."                # optional
     cam_mode = "controller"            # "controller" (CSP targets) or "drive" (drive-side cam)
+    fidelity = "auto"                  # "auto" (measured), "full" (every effect) or "ideal"
 
     [master]
     speed = 720.0                      # master units/s; or speed_rpm = master periods/min
     profile = "constant"               # "constant", "start_stop" or "cam_in"
+    lead_cycles = 1                    # set points for 1 cycle ahead (CSP), or 0: a master that
+                                       # sends the position of now (the drive then lags a cycle)
     # start_stop: max_acceleration (master units/s^2), max_jerk (units/s^3), start_s, stop_s
     # cam_in: engage_at (master units), slave_start (slave units), max_velocity (slave
     #         units/s), slave_max_acceleration (units/s^2), slave_max_jerk (units/s^3)
@@ -32,6 +35,12 @@ Layout (units in the names or below; SI unless said otherwise)::
     substeps = 4                       # controller periods per cycle
     following_error_window = 50000     # counts (0x6065)
     model = "auto"                     # "auto", "rigid" or "two_mass"
+    feedforward = "offset"             # "offset" (0x60B1 streamed with the targets) or "target"
+    # effects (hil_sim.effects: each has a documented default when left out)
+    encoder_counts_per_rev = 1048576   # 0 = ideal feedback
+    velocity_filter_hz = 1000.0        # the speed estimate's low-pass
+    current_loop_bandwidth_hz = 1000.0 # 0 = ideal torque
+    computation_delay = true           # one controller period
     [drive.gains]                      # optional: bandwidths and/or raw gains
     velocity_bandwidth_hz = 200.0
 
@@ -39,6 +48,11 @@ Layout (units in the names or below; SI unless said otherwise)::
     motor_inertia = 1.2e-4
     gear_ratio = 0.1
     slave_units_per_load_radian = 1.0  # slave user units per radian of the load shaft
+    # effects (hil_sim.effects: each has a documented default when left out; 0 = none)
+    gear_backlash = 8.7e-4             # rad at the load shaft (3 arcmin)
+    motor_coulomb_friction = 0.05      # N m
+    load_coulomb_friction = 1.0        # N m
+    coupling_inertia = 2e-4            # kg m^2, half to each side of the spring
 
     [bus]
     bitrate = 1000000
@@ -51,6 +65,9 @@ Layout (units in the names or below; SI unless said otherwise)::
     following_error = 40000            # counts, motor side; default the drive's window
     bus_load_percent = 100.0
     wind_up_deg = 0.5                  # optional
+    tracking_window = [330.0, 30.0]    # optional: master positions (within the period, may
+                                       # span the seam) where the tracking check applies
+    settle_s = 0.5                     # optional: left out of tracking and following error
     resonance_excitation_percent = 5.0
     motor_saturation_percent = 0.0
 
@@ -71,9 +88,10 @@ from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
-from ecam.validate import Fields, fail, show
+from ecam.validate import Fields, choice, fail, show
 from hil_sim.bus import FRAME_KINDS, Faults
-from hil_sim.control import MODELS
+from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
+from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
 
 #: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
@@ -88,7 +106,7 @@ PROFILE_KEYS = {
 }
 GAIN_BANDWIDTH_KEYS = ("velocity_bandwidth_hz", "position_bandwidth_hz", "integral_ratio")
 GAIN_KEYS = ("position_kp", "velocity_kp", "velocity_ki", "velocity_feedforward",
-             "acceleration_feedforward")
+             "acceleration_feedforward", "notch_hz", "notch_width", "notch_depth_db")
 
 # Physical range of each mechanics field [SI]: wide enough for a watch motor and a press, narrow
 # enough that products of them (torques, energies, the plant matrices) stay finite in float64.
@@ -100,6 +118,16 @@ MECHANICS_RANGES = {
     "coupling_damping": 1e8, "coupling_rated_torque": 1e8, "coupling_max_torque": 1e8,
     "motor_torque_limit": 1e6,
 }
+
+# Ranges of the effect fields [SI]: finite arithmetic, and a backlash of at most half a turn.
+EFFECT_RANGES = {"gear_backlash": math.pi, "motor_coulomb_friction": 1e6,
+                 "load_coulomb_friction": 1e8, "coupling_inertia": 1e6}
+MAX_BANDWIDTH_HZ = 1e7
+MAX_LEAD_CYCLES = 4
+MAX_SETTLE_S = 1e6
+#: The longest run the rig records: its memory is about 0.2 kB per cycle (see
+#: hil_sim.rig.loop), so this many cycles stay within about 1 GB.
+MAX_CYCLES = 5_000_000
 
 MECHANICS_KEYS = ("motor_inertia", "gear_ratio", "gear_efficiency", "motor_damping",
                   "load_damping", "coupling_stiffness", "coupling_damping", "load_inertia",
@@ -126,6 +154,7 @@ class MasterSpec:
     max_velocity: float | None = None
     slave_max_acceleration: float | None = None
     slave_max_jerk: float | None = None
+    lead_cycles: int = 1
 
     def units_per_second(self, master_period: float) -> float:
         """Cruise speed [master units/s] for a cam of ``master_period`` master units."""
@@ -164,7 +193,9 @@ class CamSpec:
 
 @dataclass(frozen=True)
 class DriveSpec:
-    """The drive: node id, cycle, control loop, following-error window, plant model."""
+    """The drive: node id, cycle, control loop, following-error window, plant model,
+    feed-forward source and the drive's effects (``effects``: the keys of
+    :data:`hil_sim.effects.DRIVE_FIELDS` the scene gives)."""
 
     node_id: int = 1
     cycle_s: float = 0.001
@@ -172,14 +203,24 @@ class DriveSpec:
     following_error_window: int = 100000
     model: str = "auto"
     gains: tuple[tuple[str, float], ...] = ()
+    feedforward: str = "offset"
+    effects: tuple[tuple[str, float | bool], ...] = ()
+
+    @property
+    def control_rate_hz(self) -> float:
+        """Controller periods per second."""
+        return self.substeps / self.cycle_s
 
 
 @dataclass(frozen=True)
 class MechanicsSpec:
-    """Keyword arguments of :class:`ecam.mechanics.Mechanics`, plus the load scaling."""
+    """Keyword arguments of :class:`ecam.mechanics.Mechanics`, plus the load scaling and the
+    mechanical effects the scene gives (``effects``: keys of
+    :data:`hil_sim.effects.MECHANICS_FIELDS`)."""
 
     values: tuple[tuple[str, float | None], ...]
     slave_units_per_load_radian: float = 1.0
+    effects: tuple[tuple[str, float], ...] = ()
 
     def build(self) -> Mechanics:
         """The :class:`~ecam.mechanics.Mechanics` (its own checks name the field)."""
@@ -204,6 +245,8 @@ class LimitsSpec:
     wind_up_deg: float | None = None
     resonance_excitation_percent: float = 5.0
     motor_saturation_percent: float = 0.0
+    tracking_window: tuple[float, float] | None = None
+    settle_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -246,6 +289,8 @@ class Scene:
         How long to run: cycles, seconds or master periods.
     description : str
         Free text.
+    fidelity : {"auto", "full", "ideal"}
+        How much of the effects a run models (:mod:`hil_sim.effects`).
     """
 
     name: str
@@ -259,10 +304,15 @@ class Scene:
     limits: LimitsSpec
     duration: DurationSpec
     description: str = ""
+    fidelity: str = "auto"
 
     def with_master_speed(self, speed: float) -> "Scene":
         """The same scene at another master speed [master units/s]."""
         return replace(self, master=replace(self.master, speed=float(speed), speed_rpm=None))
+
+    def with_fidelity(self, fidelity: str) -> "Scene":
+        """The same scene with another fidelity (``"auto"``, ``"full"`` or ``"ideal"``)."""
+        return replace(self, fidelity=choice("fidelity", fidelity, FIDELITIES))
 
 
 # ------------------------------------------------------------------------------------------
@@ -327,12 +377,13 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     """
     if cam is not None and not isinstance(cam, CamProfile):
         raise fail("cam", cam, "an ecam.CamProfile")
-    top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "master",
-                                              "cam", "drive", "mechanics", "bus", "limits",
-                                              "duration"})
+    top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
+                                              "master", "cam", "drive", "mechanics", "bus",
+                                              "limits", "duration"})
     name = top.string("name", default=Path(source).stem)
     description = top.string("description", default="")
     cam_mode = top.choice("cam_mode", CAM_MODES, default="controller")
+    fidelity = top.choice("fidelity", FIDELITIES, default="auto")
     master = _master(top)
     if cam_mode == "drive" and master.profile == "cam_in":
         raise top.error("cam_mode: 'drive' should be 'controller' for master.profile 'cam_in' "
@@ -340,11 +391,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
                  cam=_cam(top, base, cam), drive=_drive(top), mechanics=_mechanics(top),
                  bus=_bus(top), limits=_limits(top), duration=_duration(top),
-                 description=description)
+                 description=description, fidelity=fidelity)
 
 
 def _master(top: Fields) -> MasterSpec:
-    common = ("speed", "speed_rpm", "profile")
+    common = ("speed", "speed_rpm", "profile", "lead_cycles")
     raw = top.table("master", {*common, *(k for keys in PROFILE_KEYS.values() for k in keys)},
                     required=True)
     if ("speed" in raw) == ("speed_rpm" in raw):
@@ -360,7 +411,8 @@ def _master(top: Fields) -> MasterSpec:
     speed = raw.number(key)
     if speed == 0.0:
         raise raw.error(f"{raw.name(key)}: {show(speed)} should be non-zero")
-    spec = {key: speed, "profile": profile}
+    spec = {key: speed, "profile": profile,
+            "lead_cycles": raw.integer("lead_cycles", default=1, minimum=0, maximum=MAX_LEAD_CYCLES)}
     if profile == "start_stop":
         spec["max_acceleration"] = raw.number("max_acceleration", required=True, minimum=0.0,
                                               strict=True)
@@ -420,7 +472,7 @@ def _cam_file(raw: Fields, written: str, base: Path) -> Path:
 
 def _drive(top: Fields) -> DriveSpec:
     raw = top.table("drive", {"node_id", "cycle_s", "substeps", "following_error_window",
-                              "model", "gains"})
+                              "model", "gains", "feedforward", *DRIVE_FIELDS})
     gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
     gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
@@ -436,7 +488,27 @@ def _drive(top: Fields) -> DriveSpec:
         following_error_window=raw.integer("following_error_window", default=100000,
                                            minimum=1, maximum=0xFFFFFFFF),
         model=raw.choice("model", MODELS, default="auto"),
-        gains=gains)
+        gains=gains,
+        feedforward=raw.choice("feedforward", FEEDFORWARD_SOURCES, default="offset"),
+        effects=_drive_effects(raw))
+
+
+def _drive_effects(raw: Fields) -> tuple:
+    """The drive effect fields the scene gives (0 for a number: the effect is absent)."""
+    out = []
+    if "encoder_counts_per_rev" in raw:
+        counts = raw.integer("encoder_counts_per_rev", minimum=0, maximum=2**40)
+        if 0 < counts < 4:
+            raise raw.error(f"{raw.name('encoder_counts_per_rev')}: {counts} should be 0 (ideal "
+                            "feedback) or an integer in 4..2^40")
+        out.append(("encoder_counts_per_rev", counts))
+    for key in ("velocity_filter_hz", "current_loop_bandwidth_hz"):
+        if key in raw:
+            out.append((key, raw.number(key, minimum=0.0, maximum=MAX_BANDWIDTH_HZ,
+                                        strict=key == "velocity_filter_hz")))
+    if "computation_delay" in raw:
+        out.append(("computation_delay", raw.boolean("computation_delay")))
+    return tuple(out)
 
 
 def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
@@ -461,15 +533,17 @@ def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
 
 
 def _mechanics(top: Fields) -> MechanicsSpec:
-    raw = top.table("mechanics", {*MECHANICS_KEYS, "slave_units_per_load_radian"},
-                    required=True)
+    raw = top.table("mechanics", {*MECHANICS_KEYS, "slave_units_per_load_radian",
+                                  *MECHANICS_FIELDS}, required=True)
     values = []
     for key in MECHANICS_KEYS:
         value = raw.number(key, required=key == "motor_inertia", maximum=MECHANICS_RANGES[key])
         if value is not None:
             values.append((key, value))
+    effects = tuple((key, raw.number(key, minimum=0.0, maximum=EFFECT_RANGES[key]))
+                    for key in MECHANICS_FIELDS if key in raw)
     spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=raw.number(
-        "slave_units_per_load_radian", default=1.0, minimum=0.0, strict=True))
+        "slave_units_per_load_radian", default=1.0, minimum=0.0, strict=True), effects=effects)
     with raw.calling():  # the lower bounds and the rules between fields are Mechanics' own
         spec.build()
     return spec
@@ -509,7 +583,26 @@ def _limits(top: Fields) -> LimitsSpec:
         resonance_excitation_percent=raw.number("resonance_excitation_percent", default=5.0,
                                                 minimum=0.0),
         motor_saturation_percent=raw.number("motor_saturation_percent", default=0.0,
-                                            minimum=0.0, maximum=100.0))
+                                            minimum=0.0, maximum=100.0),
+        tracking_window=_window(raw, "tracking_window"),
+        settle_s=raw.number("settle_s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S))
+
+
+def _window(raw: Fields, key: str) -> tuple[float, float] | None:
+    """A window [start, end] of master positions; end < start spans the seam."""
+    if key not in raw:
+        return None
+    value = raw.get(key)
+    name = raw.name(key)
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in value)):
+        raise raw.error(f"{name}: {show(value)} should be [start, end] in master units (two "
+                        "finite numbers; end < start spans the seam)")
+    start, end = float(value[0]), float(value[1])
+    if start == end:
+        raise raw.error(f"{name}: {show(value)} should have start != end")
+    return start, end
 
 
 def _duration(top: Fields) -> DurationSpec:
@@ -518,7 +611,7 @@ def _duration(top: Fields) -> DurationSpec:
         raise raw.error(f"duration: {show(dict(raw.raw))} should give exactly one of cycles, "
                         "seconds, master_periods")
     return DurationSpec(
-        cycles=raw.integer("cycles", minimum=1, maximum=100_000_000),
+        cycles=raw.integer("cycles", minimum=1, maximum=MAX_CYCLES),
         seconds=raw.number("seconds", minimum=0.0, strict=True),
         master_periods=raw.number("master_periods", minimum=0.0, strict=True))
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ecam.errors import InputError
-from hil_sim.full_plant import ARCMIN, Effects, FullPlant
+from hil_sim.plant import ARCMIN, FullPlant
+from hil_sim.plant import MechanicalEffects as Effects
 from ecam.mechanics import Mechanics
 from hil_sim.plant import TwoMassPlant
 

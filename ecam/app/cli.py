@@ -13,6 +13,7 @@ import sys
 
 from ecam.errors import EcamError, InputError
 from ecam.table import INTERPOLATIONS
+from hil_sim.effects import FIDELITIES
 
 from . import cam_commands
 
@@ -57,7 +58,7 @@ def _hil_sim(args) -> int:
 
 
 def _drive(args) -> int:
-    from .rig_commands import drive_command
+    from .drive_command import drive_command
 
     return drive_command(args)
 
@@ -73,7 +74,11 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="FILE.png",
                         help="save tracking error, coupling torque and following error plots")
     parser.add_argument("--find-max-speed", action="store_true",
-                        help="also bisect the master speed for the highest one that passes")
+                        help="also search the highest master speed that passes (a progress line "
+                             "per trial on stderr)")
+    parser.add_argument("--fidelity", choices=FIDELITIES,
+                        help="which effects to model: auto (measured; the scene's default), full "
+                             "(every effect), ideal (none)")
 
 
 def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,9 +88,11 @@ def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
                              "[239.74.163.2] or a SocketCAN interface [vcan0]")
     parser.add_argument("--node-id", type=int, default=None,
                         help="CANopen node id 1..127 [1, or the scene's]")
-    parser.add_argument("--interface", default="virtual", choices=("virtual", "udp_multicast", "ecam_udp", "socketcan"),
-                        help="virtual: masters in this process only; udp_multicast (= ecam_udp, "
-                             "without echoes) or socketcan: masters in other processes [virtual]")
+    parser.add_argument("--interface", default="udp_multicast",
+                        choices=("udp_multicast", "ecam_udp", "socketcan", "virtual"),
+                        help="udp_multicast (= ecam_udp, without echoes) or socketcan: masters "
+                             "in other processes; virtual: masters in this process only "
+                             "[udp_multicast]")
     parser.add_argument("--heartbeat-ms", type=int, default=None,
                         help="producer heartbeat time at boot [ms] (default: the EDS value)")
     parser.add_argument("--scene", metavar="SCENE.toml", default=None,

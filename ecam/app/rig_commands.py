@@ -1,24 +1,17 @@
-"""The rig commands: `ecam sim` (one scene or many) and `ecam drive` (a virtual drive for an
-external CANopen master). Exit status: 0 when every scene passes (or the drive was stopped), 1 when
-a check fails, 2 on bad input."""
+"""The rig command `ecam sim` (one scene or many; `ecam drive` is in :mod:`.drive_command`).
+Exit status: 0 when every scene passes, 1 when a check fails, 2 on bad input."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
-import threading
 from pathlib import Path
 
-import can
-
 from ecam.atomic_files import write_files
-from ecam.errors import EcamError, InputError
-from hil_sim.drive import VirtualDrive
-from hil_sim.rig import drive_for_scene, find_max_speed, run_scene
+from ecam.errors import InputError
+from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.scene import load_scene
-from hil_sim.udp_bus import DEFAULT_GROUP, EchoFreeUdpMulticastBus
 
 from .html_report import html_report
 from .junit import junit_xml
@@ -43,8 +36,13 @@ def sim_command(args: argparse.Namespace) -> int:
                              "(`ecam sim` runs several)")
         path = path[0]
     scene = load_scene(path)
+    if getattr(args, "fidelity", None):
+        scene = scene.with_fidelity(args.fidelity)
     report = run_scene(scene, plot=args.plot)
-    search = find_max_speed(scene) if args.find_max_speed else None
+    search = None
+    if args.find_max_speed:
+        search = find_max_speed(scene, progress=lambda line: print(line, file=sys.stderr,
+                                                                   flush=True))
     if args.json:
         out = report.to_dict(timing=args.timing)
         if search is not None:
@@ -53,18 +51,32 @@ def sim_command(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(report.to_text())
         if search is not None:
-            if search["speed"] is None:
-                print(f"max speed: no tested speed passes (lowest tried "
-                      f"{search['failing_speed']:.6g} {search['unit']})")
-            else:
-                failing = search["failing_speed"]
-                tail = (f"; at {failing:.6g} {search['unit']} fails "
-                        f"{', '.join(search['failed_checks'])}" if failing is not None else "")
-                print(f"max speed: {search['speed']:.6g} {search['unit']} passes"
-                      f"{tail} ({len(search['runs'])} runs)")
+            sys.stdout.write(format_search(search))
         if args.plot:
             print(f"plots: {args.plot}")
     return 0 if report.passed else 1
+
+
+def format_search(search: dict) -> str:
+    """The text of a find-max-speed result."""
+    unit = search["unit"]
+    if search["speed"] is None:
+        lowest = search["failing_speed"]
+        return (f"max speed: no tried speed passes (lowest tried {lowest:.6g} {unit}; "
+                f"{len(search['runs'])} trials)\n" if lowest is not None else
+                "max speed: no trial could run\n")
+    lines = [f"max speed: {search['speed']:.6g} {unit} = {search['periods_per_minute']:.6g} "
+             f"periods per minute"
+             + (" (confirmed over CANopen)" if search["confirmed"] else " (NOT confirmed over CANopen)")]
+    if search["failing_speed"] is not None:
+        lines.append(f"  limited by: at {search['failing_speed']:.6g} {unit} "
+                     f"{search['limiting_check'] or ', '.join(search['failed_checks'])}")
+    else:
+        lines.append("  no failing speed found within the trials")
+    lines.append(f"  resolution {search['resolution']:.3g} {unit}: {search['resolution_reason']}")
+    lines.append(f"  each trial: until cruise speed and the settling time, then "
+                 f"{search['periods_at_cruise']} periods ({len(search['runs'])} trials)")
+    return "\n".join(lines) + "\n"
 
 
 def sim_many(args) -> int:
@@ -87,65 +99,3 @@ def sim_many(args) -> int:
     except OSError as exc:
         raise InputError(f"report files cannot be written: {exc.strerror or exc}") from None
     return exit_status(results)
-
-
-# Transports and how the drive opens them. The in-process `virtual` bus reaches only masters in this
-# process; the others reach other processes. On udp_multicast every sender hears its own frames
-# back, so the drive opens it as the echo-free variant (same wire format and groups).
-_DEFAULT_CHANNELS = {"virtual": "ecam", "udp_multicast": DEFAULT_GROUP, "ecam_udp": DEFAULT_GROUP,
-                     "socketcan": "vcan0"}
-
-
-def open_drive_bus(interface: str, channel: str | None):
-    """(bus, channel): None for the in-process virtual bus, which the drive opens itself."""
-    channel = channel or _DEFAULT_CHANNELS[interface]
-    if interface == "virtual":
-        return None, channel
-    try:
-        if interface in ("udp_multicast", "ecam_udp"):
-            return EchoFreeUdpMulticastBus(channel=channel), channel
-        return can.Bus(interface=interface, channel=channel), channel
-    except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: {exc}") from None
-
-
-def drive_command(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
-    """Run a virtual drive until Ctrl-C or SIGTERM (or until ``stop`` is set); return 0."""
-    bus, channel = open_drive_bus(args.interface, args.channel)
-    try:
-        if args.scene is not None:
-            drive = drive_for_scene(args.scene, channel=channel, bus=bus, node_id=args.node_id,
-                                    heartbeat_ms=args.heartbeat_ms)
-        else:
-            drive = VirtualDrive(channel=channel, node_id=1 if args.node_id is None else args.node_id, bus=bus,
-                                 heartbeat_ms=args.heartbeat_ms)
-    except BaseException:
-        if bus is not None:
-            bus.shutdown()
-        raise
-    stop = stop or threading.Event()
-    restore = _stop_on_sigterm(stop)
-    print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "
-          f"{channel!r}; Ctrl-C or SIGTERM stops it", flush=True)
-    drive.start()
-    try:
-        while not stop.wait(0.1):
-            pass
-    except KeyboardInterrupt:
-        pass
-    finally:
-        drive.stop()
-        if bus is not None:
-            bus.shutdown()
-        restore()
-    print("virtual drive stopped", flush=True)
-    return 0
-
-
-def _stop_on_sigterm(stop: threading.Event):
-    """Let SIGTERM (a service manager, `kill`) stop the drive as Ctrl-C does: the bus is shut down
-    and the process exits 0. Returns the function that puts the previous handler back."""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None  # signal handlers can be set from the main thread only
-    previous = signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
-    return lambda: signal.signal(signal.SIGTERM, previous)

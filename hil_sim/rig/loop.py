@@ -1,81 +1,34 @@
 """The lock-step cycles of a run, over the virtual bus.
 
-Each cycle, in this order: frames held back from earlier cycles arrive; the RPDO with the set
-point goes out; the SYNC goes out and the drive handles both (runs its control loop one period
-and answers with its TPDOs), or, the SYNC lost, runs free; TPDOs held back arrive; the
-controller reads the drive's answers; the plant is probed; the bus load closes the cycle; a
-drive fault ends the run. Faults (lost or late frames, SYNC jitter) are applied here, from the
-seeded :class:`~hil_sim.bus.FaultInjector`, so the same scene gives the same record.
+One bus cycle is the time between two SYNCs. In it go: the SYNC, the drive's TPDOs answering
+it, and the controller's RPDO with the set point for the next SYNC; frames carried over from the
+cycle before go right after the SYNC. Each cycle, in this order: the RPDO goes out (unless it
+missed its SYNC, see below); the SYNC goes out and the drive handles both (runs its control
+loop one period and answers with its TPDOs), or, the SYNC lost, runs free; carried-over frames
+arrive; the controller reads the drive's answers; the plant is probed; the bus load closes the
+cycle; a drive fault ends the run.
+
+Bus time: the virtual bus delivers any number of frames at once, so the cycle's frames are
+arbitrated here (:func:`hil_sim.bus.arbitrate`): lowest COB-ID first, and whatever does not fit
+into ``bitrate * cycle_s`` bits goes out after the next SYNC: a late RPDO is latched one SYNC
+late (the drive repeats its last set point for a cycle), a late TPDO reaches the controller a
+cycle late. The report counts them.
+
+Faults (lost or late frames, SYNC jitter) are applied here too, from the seeded
+:class:`~hil_sim.bus.FaultInjector`, so the same scene gives the same record.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import can
-import numpy as np
 
-from hil_sim.bus import DELIVER, BusLoad, FaultInjector
+from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, arbitrate, frame_bits
 from hil_sim.drive import VirtualDrive, cia402
 from hil_sim.rig.network import LockstepMaster, pdo_codec
-from hil_sim.rig.plan import Plan
+from hil_sim.rig.plan import Plan, wire_set_points
+from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
 
-_RECORDED = {0x6041: "statusword", 0x60F4: "following_error"}  # read from the TPDOs
-# read from the drive's axis after each cycle (what a real rig would measure at the load)
-_PROBED = ("load_angle", "coupling_torque", "peak_coupling_torque", "peak_twist",
-           "peak_motor_torque", "saturated")
 _SYNC_COB_ID = 0x80
-
-
-@dataclass(frozen=True)
-class Record:
-    """What a run recorded: one value per cycle run, NaN where a TPDO never arrived.
-
-    Attributes
-    ----------
-    cycles : int
-        Cycles run; fewer than planned when a drive fault stopped the run.
-    stopped : str or None
-        Why the run stopped early (the fault, the cycle, the statusword), None if it did not.
-    statusword, following_error : numpy.ndarray
-        From the drive's TPDOs (following error in counts, motor side).
-    load_angle : numpy.ndarray
-        Load angle [rad].
-    coupling_torque : numpy.ndarray
-        Coupling torque at the end of the cycle [N m].
-    peak_coupling_torque, peak_twist, peak_motor_torque : numpy.ndarray
-        Largest magnitudes within the cycle [N m, rad, N m].
-    saturated : numpy.ndarray
-        1.0 where the motor torque was clamped in the cycle, else 0.0.
-    emcy : list of (float, int)
-        (time [s], error code) of every EMCY the controller received.
-    model, model_reason : str
-        The plant the drive ran and why.
-    setup : dict
-        Facts of the set-up (:func:`hil_sim.rig.network.set_up_drive`).
-    bus : dict
-        :meth:`hil_sim.bus.BusLoad.summary` of the run.
-    faults : dict or None
-        :meth:`hil_sim.bus.FaultInjector.summary`, None without fault injection.
-    """
-
-    cycles: int
-    stopped: str | None
-    statusword: np.ndarray
-    following_error: np.ndarray
-    load_angle: np.ndarray
-    coupling_torque: np.ndarray
-    peak_coupling_torque: np.ndarray
-    peak_twist: np.ndarray
-    peak_motor_torque: np.ndarray
-    saturated: np.ndarray
-    emcy: list
-    model: str
-    model_reason: str
-    setup: dict
-    bus: dict
-    faults: dict | None
 
 
 def run_cycles(scene, plan: Plan, controller: LockstepMaster, node, drive: VirtualDrive,
@@ -99,35 +52,18 @@ def run_cycles(scene, plan: Plan, controller: LockstepMaster, node, drive: Virtu
     """
     cycles = _Cycles(scene, plan, controller, node, drive, load, injector)
     stopped = cycles.run()
-    ran = cycles.ran
-    series = {name: np.asarray(values[:ran], dtype=float)
-              for name, values in cycles.series.items()}
-    return Record(cycles=ran, stopped=stopped, **series,
-                  emcy=[(round(e.timestamp, 9), e.code) for e in node.emcy.log],
-                  model=drive.axis.model, model_reason=drive.axis.model_reason, setup=setup,
-                  bus=load.summary(), faults=injector.summary() if injector else None)
-
-
-def _wrapped(counts: np.ndarray) -> list:
-    """Counts as INTEGER32 on the wire: positions wrap (two's complement)."""
-    return ((counts + 2**31) % 2**32 - 2**31).tolist()
-
-
-def _set_points(drive_side: bool, plan: Plan, indexes: list[int]) -> list[tuple]:
-    """The RPDO fields of every cycle: the master position for a cam in the drive, else the
-    target and velocity offset in the RPDO's mapping order (velocities rounded to INTEGER32)."""
-    if drive_side:
-        wire = [_wrapped(plan.master_end)]
-    else:
-        velocities = np.clip(np.rint(plan.velocities), -2**31, 2**31 - 1).astype(np.int64)
-        wire = [_wrapped(plan.targets) if i == 0x607A else velocities.tolist() for i in indexes]
-    return list(zip(*wire))
+    bus = load.summary()
+    bus.update(cycles.deferred)
+    return cycles.recorder.record(
+        stopped=stopped, emcy=[(round(e.timestamp, 9), e.code) for e in node.emcy.log],
+        model=drive.axis.model, model_reason=drive.axis.model_reason, setup=setup, bus=bus,
+        faults=injector.summary() if injector else None, path="canopen")
 
 
 class _Cycles:
     """The cycles of one run: each method below :meth:`run` is one step of a cycle.
 
-    The per-cycle state (bound methods, codecs, the record's lists) is looked up once here:
+    The per-cycle state (bound methods, codecs, the record's arrays) is looked up once here:
     a run is up to millions of cycles of a handful of frames each.
     """
 
@@ -142,32 +78,42 @@ class _Cycles:
         self.notify = controller.notify
         self.add_frame = load.add_frame
         self.end_cycle = load.end_cycle
+        self.budget_bits = load.budget_bits
         self.decide = injector.decide if injector else None
-        rpdo = node.rpdo[3] if scene.cam_mode == "drive" else node.rpdo[2]
+        drive_side = scene.cam_mode == "drive"
+        rpdo = node.rpdo[3] if drive_side else node.rpdo[2]
         codec, indexes = pdo_codec(rpdo)
-        self.set_points = _set_points(scene.cam_mode == "drive", plan, indexes)
+        first, second = wire_set_points(plan, drive_side)
+        if drive_side:
+            self.fields = (first,)
+        else:  # in the RPDO's mapping order
+            self.fields = tuple(first if i == 0x607A else second for i in indexes)
         self.rpdo_cob_id = rpdo.cob_id
         self.pack = codec.pack
         self.rpdo_length = codec.size
         self.sync = can.Message(arbitration_id=_SYNC_COB_ID, data=b"", is_extended_id=False,
                                 check=False)
+        self.sync_bits = frame_bits(0)
         self.sync_offsets = plan.sync_offsets.tolist()
-        self.series = {name: [math.nan] * self.cycles for name in (*_RECORDED.values(), *_PROBED)}
-        self.probes = [(name, self.series[name]) for name in _PROBED]
+        self.recorder = Recorder(self.cycles)
         self.decoders = self._tpdo_decoders(node)
-        self.held_tx: dict[int, list] = {}  # cycle -> RPDOs delayed to it
-        self.held_rx: dict[int, list] = {}  # cycle -> TPDOs delayed to it
-        self.ran = 0
+        self.held_tx: dict[int, list] = {}  # cycle -> RPDOs that go out after its SYNC
+        self.held_rx: dict[int, list] = {}  # cycle -> TPDOs that reach the controller in it
+        self.rpdo_fate = DELIVER  # of the next cycle's RPDO, decided in the cycle before
+        self.rpdo_late = False  # the next cycle's RPDO misses its SYNC (bus time)
+        self.carried_bits = 0  # bits of frames that go right after the next SYNC
+        self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
 
     def _tpdo_decoders(self, node) -> dict:
-        """COB-ID -> (unpack, [(field number, the record's list)]) of each enabled TPDO."""
+        """COB-ID -> (unpack, [(field number, the record's array)]) of each enabled TPDO."""
         decoders = {}
+        series = self.recorder.series
         for tpdo in node.tpdo.map.values():
             if not tpdo.enabled:
                 continue
             codec, indexes = pdo_codec(tpdo)
-            slots = [(i, self.series[_RECORDED[index]]) for i, index in enumerate(indexes)
-                     if index in _RECORDED]
+            slots = [(i, series[FROM_TPDOS[index]]) for i, index in enumerate(indexes)
+                     if index in FROM_TPDOS]
             decoders[tpdo.cob_id] = (codec.unpack_from, slots)
         return decoders
 
@@ -175,18 +121,26 @@ class _Cycles:
         """All cycles, or up to a drive fault; return why the run stopped early, if so."""
         self.drive.axis_wall_s = 0.0
         cycle_s = self.cycle_s
+        recorder = self.recorder
+        self.rpdo_fate = self._fate(0, "rpdo")
         for k in range(self.cycles):
             now = k * cycle_s
-            if self.held_tx:
-                self._release_held_rpdos(k)
-            self._send_set_point(k, now)
+            message = self._set_point(k, now)
+            if message is not None and not self.rpdo_late:
+                self.send(message)  # before the SYNC: latched by it
             self._sync(k, now)
+            if message is not None and self.rpdo_late:
+                self.send(message)  # after the SYNC: latched by the next one
+            if self.held_tx:
+                for msg in self.held_tx.pop(k, ()):
+                    self.send(msg)
+            self.drive.process()
             if self.held_rx:
                 self._release_held_tpdos(k)
-            self._receive(k)
-            self._probe(k)
+            self._receive_and_arbitrate(k)
+            recorder.probe(k, self.axis)
             self.end_cycle()
-            self.ran = k + 1
+            recorder.ran = k + 1
             stopped = self._fault(k, now)
             if stopped:
                 return stopped
@@ -196,30 +150,26 @@ class _Cycles:
         """DELIVER, DROP, or the cycles a frame of ``kind`` is held back (the injector's call)."""
         return self.decide(k, kind) if self.decide else DELIVER
 
-    def _release_held_rpdos(self, k: int) -> None:
-        # Frames of earlier cycles that were held back arrive first.
-        for msg in self.held_tx.pop(k, ()):
-            self.send(msg)
-            self.add_frame(msg.dlc)
-
-    def _send_set_point(self, k: int, now: float) -> None:
-        msg = can.Message(arbitration_id=self.rpdo_cob_id, data=self.pack(*self.set_points[k]),
+    def _set_point(self, k: int, now: float) -> can.Message | None:
+        """Cycle k's RPDO if it goes on the bus now (a delayed one is held, a lost one is gone)."""
+        fate = self.rpdo_fate
+        msg = can.Message(arbitration_id=self.rpdo_cob_id,
+                          data=self.pack(*(int(values[k]) for values in self.fields)),
                           is_extended_id=False, timestamp=now, check=False)
-        fate = self._fate(k, "rpdo")
+        self.add_frame(self.rpdo_length)  # a lost frame took its bus time too
         if fate == DELIVER:
-            self.send(msg)
-            self.add_frame(self.rpdo_length)
-        elif fate > 0:
+            return msg
+        if fate > 0:
             self.held_tx.setdefault(k + fate, []).append(msg)
+        return None
 
     def _sync(self, k: int, now: float) -> None:
         """The SYNC runs the drive one period; without it the drive still handles the RPDO and
         runs free (its control loop goes on, no TPDOs)."""
+        self.add_frame(0)  # a lost frame took its bus time too
         if self._fate(k, "sync") == DELIVER:
             self.sync.timestamp = now + self.sync_offsets[k]
             self.send(self.sync)  # the bus hands a copy to each receiver
-            self.add_frame(0)
-            self.drive.process()
         else:
             self.drive.process()
             self.drive.free_run()
@@ -234,27 +184,44 @@ class _Cycles:
         for msg in self.held_rx.pop(k, ()):
             self._decode(k, msg)
 
-    def _receive(self, k: int) -> None:
-        """Read every frame the drive answered; TPDOs go through the fault injector, anything
-        else (EMCY, heartbeat) to canopen."""
+    def _receive_and_arbitrate(self, k: int) -> None:
+        """Read every frame the drive answered: TPDOs go through the fault injector and, with
+        the next cycle's RPDO, through arbitration; anything else (EMCY, heartbeat) to canopen."""
+        waiting = []
         while True:
             msg = self.recv(timeout=0)
             if msg is None:
-                return
+                break
             self.add_frame(msg.dlc)
             if msg.arbitration_id not in self.decoders:
                 self.notify(msg.arbitration_id, msg.data, msg.timestamp)
                 continue
             fate = self._fate(k, "tpdo")
             if fate == DELIVER:
-                self._decode(k, msg)
+                waiting.append((msg.arbitration_id, msg.dlc, msg))
             elif fate > 0:
                 self.held_rx.setdefault(k + fate, []).append(msg)
-
-    def _probe(self, k: int) -> None:
-        state = self.axis.state
-        for name, values in self.probes:
-            values[k] = state[name]
+        frames = list(waiting)
+        self.rpdo_late = False
+        if k + 1 < self.cycles:
+            self.rpdo_fate = self._fate(k + 1, "rpdo")
+            if self.rpdo_fate != DROP:
+                frames.append((self.rpdo_cob_id, self.rpdo_length, None))
+        used = self.sync_bits + self.carried_bits
+        on_time, late = arbitrate(frames, self.budget_bits, used)
+        for _, _, msg in on_time:
+            if msg is not None:
+                self._decode(k, msg)
+        self.carried_bits = sum(frame_bits(length) for _, length, _ in late)
+        for _, _, msg in late:
+            if msg is None:
+                self.rpdo_late = True
+                self.deferred["late_set_points"] += 1
+            else:
+                self.held_rx.setdefault(k + 1, []).append(msg)
+                self.deferred["late_tpdos"] += 1
+        if late and self.deferred["first_late_cycle"] is None:
+            self.deferred["first_late_cycle"] = k
 
     def _fault(self, k: int, now: float) -> str | None:
         """Why the run stops after cycle ``k`` (a drive fault), or None."""

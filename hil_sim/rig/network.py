@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import struct
 
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
 from ecam.errors import SimulationError
 from hil_sim.bus import BusLoad, SimNetwork, frame_bits
 from hil_sim.drive import CAM_COMMAND_ACTIVATE, VirtualDrive, cia402
@@ -94,12 +96,18 @@ def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualD
     if node.nmt.state != "PRE-OPERATIONAL":
         raise SimulationError(f"drive NMT state {node.nmt.state} after boot-up, "
                               "expected PRE-OPERATIONAL")
-    _configure(scene, node)
     facts = {}
-    if scene.cam_mode == "drive":
-        facts["download"] = _download_table(scene, controller, node, cam.table)
-    node.tpdo.read()
-    node.rpdo.read()
+    step = "configuration (0x60C2, 0x6065, 0x6060)"
+    try:
+        _configure(scene, node)
+        if scene.cam_mode == "drive":
+            step = "table download (0x2000..0x2004)"
+            facts["download"] = _download_table(scene, controller, node, cam.table)
+        step = "PDO set-up"
+        node.tpdo.read()
+        node.rpdo.read()
+    except (SdoAbortedError, SdoCommunicationError) as exc:
+        raise SimulationError(f"drive set-up failed at the {step}: {exc}") from None
     node.nmt.state = "OPERATIONAL"
     controller.settle()
     _enable(controller, node)

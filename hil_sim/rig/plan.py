@@ -1,9 +1,14 @@
 """Everything about a run that does not depend on the slave: the cycle count, the master's
 motion sampled for every cycle, and the set points looked up in the table for all of them.
 
+The CSP timeline (CiA 402): the set point sent before SYNC k is latched at that SYNC and the
+drive interpolates towards it over the cycle that follows, so a master leads by one cycle: it
+sends the position for SYNC k+1 (``lead_cycles = 1``, the default). A master that sends the
+position of now (``lead_cycles = 0``) makes the drive lag one cycle behind it.
+
 Controller-side, the set points are looked up in the table for all cycles at once
-(``table.lookup`` for the target at the end of the cycle, ``table.slope`` times the master speed
-at mid-cycle for the velocity offset). Drive-side, the master position is what goes on the bus.
+(``table.lookup`` for the target, ``table.slope`` times the master speed at the target's time for
+the velocity offset). Drive-side, the master position is what goes on the bus.
 """
 
 from __future__ import annotations
@@ -13,13 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ecam.errors import InputError
+from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
+from hil_sim.control import Gains
+from hil_sim.effects import EffectValues
 from hil_sim.master import ConstantSpeed, StartStop, cam_in
 from hil_sim.rig.cam import CompiledCam
-from hil_sim.scene import Scene
-
-MAX_CYCLES = 100_000_000
+from hil_sim.scene import MAX_CYCLES, Scene
 
 
 @dataclass(frozen=True)
@@ -28,7 +33,7 @@ class Plan:
 
     cycles: int
     cycle_s: float
-    master_end: np.ndarray       # master counts sent for the end of cycle k (jittered sample)
+    master_end: np.ndarray       # master counts sent in cycle k (for its target time, jittered)
     targets: np.ndarray          # controller-side target counts (int64)
     velocities: np.ndarray       # controller-side velocity offset [counts/s]
     reference_units: np.ndarray  # ideal slave position at the end of cycle k [slave units]
@@ -51,6 +56,10 @@ class PreparedRun:
     excitation_hz : float
         The cam's highest significant acceleration harmonic at the master speed [Hz], which the
         drive's plant choice is based on.
+    effect_values : hil_sim.effects.EffectValues
+        Every effect's value for the scene (the scene's, or the default).
+    gains : hil_sim.control.Gains
+        The drive's gains.
     """
 
     scene: Scene
@@ -58,6 +67,8 @@ class PreparedRun:
     mechanics: Mechanics
     plan: Plan
     excitation_hz: float
+    effect_values: EffectValues | None = None
+    gains: Gains | None = None
 
     @property
     def cam_hz(self) -> float:
@@ -115,14 +126,14 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
                          f"more than half the cam period ({period / 2:g}); should be <= "
                          f"{period / 2 / cycle_s:.6g}")
     k = np.arange(cycles, dtype=float)
-    t_end = (k + 1.0) * cycle_s            # the target sent in cycle k is for its end
-    t_set = t_end + jitter                 # sampled at the jittered SYNC instant
-    t_mid = t_set - 0.5 * cycle_s
+    t_end = (k + 1.0) * cycle_s            # the drive reaches the target of cycle k at its end
+    # The set point sent in cycle k is for SYNC k + lead (the lead's SYNC), sampled at the
+    # jittered instant.
+    t_set = (k + spec.lead_cycles) * cycle_s + jitter
     master, slave_plan = _master_motion(scene, cam, speed, per_unit)
     master_end = np.rint(master.position(t_set)).astype(np.int64)
-    master_mid = np.rint(master.position(t_mid)).astype(np.int64)
     targets = table.lookup(master_end)
-    velocities = table.slope(master_mid) / 65536.0 * master.velocity(t_mid)
+    velocities = table.slope(master_end) / 65536.0 * master.velocity(t_set)
     master_true = master.position(t_end)
     reference = profile(master_true / per_unit)
     if slave_plan is None:
@@ -135,7 +146,7 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
         targets = targets.copy()
         velocities = velocities.copy()
         targets[approach] = np.rint(slave_plan.position(t_set[approach])).astype(np.int64)
-        velocities[approach] = slave_plan.velocity(t_mid[approach])
+        velocities[approach] = slave_plan.velocity(t_set[approach])
         approach = t_end < engage_s
         reference[approach] = slave_plan.position(t_end[approach]) / scale
         initial = int(round(spec.slave_start * scale))
@@ -158,8 +169,44 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
         def slave_counts(m, order):
             return profile(m / per_unit, order) * scale / per_unit**order
 
-        slave_plan = cam_in(slave_counts, spec.slave_start * scale, 0.0, speed,
-                            spec.engage_at * per_unit, spec.max_velocity * scale,
-                            spec.slave_max_acceleration * scale, spec.slave_max_jerk * scale)
+        try:
+            slave_plan = cam_in(slave_counts, spec.slave_start * scale, 0.0, speed,
+                                spec.engage_at * per_unit, spec.max_velocity * scale,
+                                spec.slave_max_acceleration * scale, spec.slave_max_jerk * scale)
+        except (InputError, SimulationError) as exc:
+            # in the scene's words: its fields, its units, the speed tried (counts inside)
+            unit = profile.master_unit
+            raise SimulationError(
+                f"master.profile 'cam_in': no cam-in onto the cam at master.engage_at "
+                f"{spec.engage_at:g} {unit} with the master at {speed / per_unit:.6g} {unit}/s "
+                f"from master.slave_start {spec.slave_start:g} {profile.slave_unit} within "
+                f"master.max_velocity, slave_max_acceleration, slave_max_jerk: "
+                f"{exc} (positions in counts)") from None
         return slave_plan.master, slave_plan
     return ConstantSpeed(speed), None
+
+
+def cruise_s(scene: Scene, cam: CompiledCam) -> float:
+    """When the master has reached its cruise speed (and a cam-in has engaged) [s]."""
+    period = cam.profile.master_period
+    per_unit = cam.table.master_counts / period
+    speed = scene.master.units_per_second(period) * per_unit
+    master, slave_plan = _master_motion(scene, cam, speed, per_unit)
+    if slave_plan is not None:
+        return float(slave_plan.engage_s)
+    return float(getattr(master, "at_speed_s", 0.0))
+
+
+def wrap_int32(counts: np.ndarray) -> np.ndarray:
+    """Counts as INTEGER32 on the wire: positions wrap (two's complement)."""
+    return (np.asarray(counts, dtype=np.int64) + 2**31) % 2**32 - 2**31
+
+
+def wire_set_points(plan: Plan, drive_side: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """What goes on the bus each cycle, as int64 arrays: drive-side the master position
+    (0x2003) and None; controller-side the target (0x607A) and the velocity offset (0x60B1,
+    rounded and saturated to INTEGER32)."""
+    if drive_side:
+        return wrap_int32(plan.master_end), None
+    velocities = np.clip(np.rint(plan.velocities), -2**31, 2**31 - 1).astype(np.int64)
+    return wrap_int32(plan.targets), velocities

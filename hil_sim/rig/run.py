@@ -13,23 +13,30 @@ import numpy as np
 
 from ecam.mechanics import Mechanics
 from ecam.plot import check_figure_path
+from ecam.validate import choice
+from hil_sim import effects
 from hil_sim.bus import BusLoad, FaultInjector, open_virtual_bus
-from hil_sim.control import Gains
+from hil_sim.control import AxisSetup, Gains
 from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.plant import significant_harmonic_hz
 from hil_sim.report import Report
 from hil_sim.rig.analysis import analyse
 from hil_sim.rig.cam import CompiledCam, cam_acceleration, compile_cam
-from hil_sim.rig.loop import Record, run_cycles
+from hil_sim.rig.fast import run_fast
+from hil_sim.rig.fidelity import Selection, select
+from hil_sim.rig.loop import run_cycles
 from hil_sim.rig.network import LockstepMaster, set_up_drive
 from hil_sim.rig.plan import PreparedRun, count_cycles, plan_run
 from hil_sim.rig.plot import plot_report
+from hil_sim.rig.record import Record
 from hil_sim.scene import Scene, load_scene
 
 _channels = itertools.count(1)  # a virtual channel of its own for every run in the process
+#: How a run moves its set points: over CANopen (the default), or bus-free.
+PATHS = ("canopen", "fast")
 
 
-def run_scene(scene, *, plot=None) -> Report:
+def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
     """Run a scene on the rig and return its report.
 
     Parameters
@@ -37,7 +44,10 @@ def run_scene(scene, *, plot=None) -> Report:
     scene : Scene or str or Path
         A scene, or the path of a scene file.
     plot : str or Path, optional
-        Save the plots (tracking error, coupling torque, following error) to this file.
+        Save the plots (tracking error, torques, following error) to this file.
+    path : {"canopen", "fast"}
+        Over the virtual CANopen bus (the default), or bus-free (:mod:`hil_sim.rig.fast`: the
+        same control and plant without frames; no bus load, no bus faults).
 
     Returns
     -------
@@ -49,33 +59,34 @@ def run_scene(scene, *, plot=None) -> Report:
         A bad scene, cam or table format (InputError and subclasses), or a run that cannot
         go on (SimulationError).
     """
+    choice("path", path, PATHS)
     if plot is not None:
         check_figure_path(plot)  # before the run, not after it
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     wall_start = time.perf_counter()
-    cam = compile_cam(scene)
-    mechanics = scene.mechanics.build()
-    cycle_s = scene.drive.cycle_s
-    cycles = count_cycles(scene, cam.profile.master_period,
-                          scene.master.units_per_second(cam.profile.master_period))
-    injector = FaultInjector(scene.bus.faults, cycle_s) if scene.bus.faults.active else None
-    jitter = injector.sync_offsets(cycles) if injector else np.zeros(cycles)
-    plan = plan_run(scene, cam, jitter, cycles)
-    options = _drive_options(scene, cam, mechanics)
-    run = PreparedRun(scene=scene, cam=cam, mechanics=mechanics, plan=plan,
-                      excitation_hz=options["excitation_hz"])
-    record, timing = _run_on_the_bus(run, injector, options, wall_start)
-
+    run, injector = prepare(scene)
+    selection = select_effects(run)
+    effects_s = time.perf_counter() - wall_start
+    setup = axis_setup(run, selection.included)
+    loop_start = time.perf_counter()
+    if path == "fast":
+        record = run_fast(run, setup)
+        timing = {"setup_s": 0.0, "loop_s": time.perf_counter() - loop_start}
+        timing["axis_s"] = timing["loop_s"]
+    else:
+        record, timing = _run_on_the_bus(run, injector, setup)
     analysis_start = time.perf_counter()
     report = analyse(run, record)
+    describe_selection(report, selection)
     analysis_s = time.perf_counter() - analysis_start
     wall_s = time.perf_counter() - wall_start
-    setup_s, loop_s, axis_s = timing["setup_s"], timing["loop_s"], timing["axis_s"]
-    simulated_s = report.cycles * cycle_s
+    loop_s, axis_s = timing["loop_s"], timing["axis_s"]
+    simulated_s = report.cycles * scene.drive.cycle_s
     report.timing = {
-        "wall_s": wall_s, "setup_s": setup_s, "loop_s": loop_s, "axis_s": axis_s,
-        "protocol_s": loop_s - axis_s, "analysis_s": analysis_s, "simulated_s": simulated_s,
+        "wall_s": wall_s, "effects_s": effects_s, "setup_s": timing["setup_s"],
+        "loop_s": loop_s, "axis_s": axis_s, "protocol_s": loop_s - axis_s,
+        "analysis_s": analysis_s, "simulated_s": simulated_s, "path": path,
         "real_time_factor": simulated_s / wall_s if wall_s > 0 else math.inf,
         "loop_real_time_factor": simulated_s / loop_s if loop_s > 0 else math.inf,
         "us_per_cycle": 1e6 * loop_s / max(report.cycles, 1),
@@ -85,8 +96,64 @@ def run_scene(scene, *, plot=None) -> Report:
     return report
 
 
-def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None, options: dict,
-                    wall_start: float) -> tuple[Record, dict]:
+def prepare(scene: Scene) -> tuple[PreparedRun, FaultInjector | None]:
+    """Everything known before the drive boots: the cam and its table, the mechanics, the
+    master's plan, every effect's value, the gains; and the bus's fault injector."""
+    cam = compile_cam(scene)
+    mechanics = scene.mechanics.build()
+    cycle_s = scene.drive.cycle_s
+    profile = cam.profile
+    speed_units = scene.master.units_per_second(profile.master_period)
+    cycles = count_cycles(scene, profile.master_period, speed_units)
+    injector = FaultInjector(scene.bus.faults, cycle_s) if scene.bus.faults.active else None
+    jitter = injector.sync_offsets(cycles) if injector else np.zeros(cycles)
+    plan = plan_run(scene, cam, jitter, cycles)
+    excitation_hz = significant_harmonic_hz(cam_acceleration(profile),
+                                            profile.master_period / abs(speed_units))
+    values = effects.resolve(mechanics, dict(scene.mechanics.effects), dict(scene.drive.effects),
+                             scene.drive.control_rate_hz)
+    run = PreparedRun(scene=scene, cam=cam, mechanics=mechanics, plan=plan,
+                      excitation_hz=excitation_hz, effect_values=values,
+                      gains=_gains(scene, mechanics))
+    return run, injector
+
+
+def axis_setup(run: PreparedRun, included) -> AxisSetup:
+    """The drive's axis with the ``included`` effects on (:meth:`EffectValues.build`)."""
+    scene = run.scene
+    model, plant_effects, drive_effects = run.effect_values.build(included)
+    return AxisSetup(run.mechanics, run.gains, substeps=scene.drive.substeps,
+                     counts_per_motor_rad=_counts_per_motor_rad(scene, run.cam, run.mechanics),
+                     model=model, excitation_hz=run.excitation_hz, plant_effects=plant_effects,
+                     drive_effects=drive_effects, feedforward=scene.drive.feedforward)
+
+
+def select_effects(run: PreparedRun) -> Selection:
+    """The effects the run models, by the scene's fidelity (:mod:`hil_sim.rig.fidelity`)."""
+    scene = run.scene
+    forced = None if scene.drive.model == "auto" else scene.drive.model
+
+    def measure(included) -> list:
+        return analyse(run, run_fast(run, axis_setup(run, included))).checks
+
+    rule = (run.mechanics, run.excitation_hz, run.gains.velocity_bandwidth_hz(run.mechanics))
+    return select(scene.fidelity, run.effect_values, forced, measure, rule)
+
+
+def describe_selection(report: Report, selection: Selection) -> None:
+    """Put the effects and why into the report (the model's reason: the compliance's)."""
+    report.summary["fidelity"] = selection.fidelity
+    report.summary["effects"] = [c.to_dict() for c in selection.choices]
+    if selection.proof is not None:
+        report.summary["fidelity_proof"] = selection.proof
+    compliance = next(c for c in selection.choices if c.name == "torsional_compliance")
+    if compliance.value != "n/a" or report.model == "two_mass":
+        kind = "two-mass model" if report.model == "two_mass" else "rigid model"
+        report.model_reason = f"{kind}: {compliance.why}."
+
+
+def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None,
+                    setup: AxisSetup) -> tuple[Record, dict]:
     """Boot the drive on a virtual channel of its own, set it up from a controller, run the
     cycles; always close the drive and the buses. Returns the record and where the time went."""
     scene = run.scene
@@ -95,15 +162,17 @@ def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None, options: d
     master_bus = open_virtual_bus(channel)
     load = BusLoad(scene.bus.bitrate, scene.drive.cycle_s)
     drive = None
+    start = time.perf_counter()
     try:
-        drive = VirtualDrive(bus=drive_bus, initial_counts=run.plan.initial_counts, **options)
+        drive = VirtualDrive(bus=drive_bus, node_id=scene.drive.node_id,
+                             initial_counts=run.plan.initial_counts, **drive_options(setup))
         controller = LockstepMaster(master_bus, drive)
         node = canopen.RemoteNode(scene.drive.node_id, load_od(EDS_PATH, scene.drive.node_id))
         controller.add_node(node)
-        setup = set_up_drive(scene, controller, node, drive, run.cam)
-        setup_s = time.perf_counter() - wall_start
-        record = run_cycles(scene, run.plan, controller, node, drive, load, injector, setup)
-        loop_s = time.perf_counter() - wall_start - setup_s
+        facts = set_up_drive(scene, controller, node, drive, run.cam)
+        setup_s = time.perf_counter() - start
+        record = run_cycles(scene, run.plan, controller, node, drive, load, injector, facts)
+        loop_s = time.perf_counter() - start - setup_s
         return record, {"setup_s": setup_s, "loop_s": loop_s, "axis_s": drive.axis_wall_s}
     finally:
         if drive is not None:
@@ -112,10 +181,18 @@ def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None, options: d
         master_bus.shutdown()
 
 
+def drive_options(setup: AxisSetup) -> dict:
+    """:class:`VirtualDrive` keyword arguments of an axis setup."""
+    return dict(mechanics=setup.mechanics, gains=setup.gains, substeps=setup.substeps,
+                counts_per_motor_rad=setup.counts_per_motor_rad, model=setup.model,
+                excitation_hz=setup.excitation_hz, plant_effects=setup.plant_effects,
+                drive_effects=setup.drive_effects, feedforward=setup.feedforward)
+
+
 def drive_for_scene(scene, *, channel: str = "ecam", bus=None, node_id: int | None = None,
                     heartbeat_ms: int | None = None) -> VirtualDrive:
-    """A :class:`VirtualDrive` with a scene's mechanics, gains and node id, at the cam's
-    position for master 0, for an external master (``hil-sim drive --scene``).
+    """A :class:`VirtualDrive` with a scene's mechanics, gains, effects and node id, at the
+    cam's position for master 0, for an external master (``ecam drive --scene``).
 
     Parameters
     ----------
@@ -130,25 +207,17 @@ def drive_for_scene(scene, *, channel: str = "ecam", bus=None, node_id: int | No
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    cam = compile_cam(scene)
-    options = _drive_options(scene, cam, scene.mechanics.build())
-    if node_id is not None:
-        options["node_id"] = node_id
-    return VirtualDrive(channel=channel, bus=bus, initial_counts=int(cam.table.lookup(0)),
-                        heartbeat_ms=heartbeat_ms, **options)
+    run, _ = prepare(scene)
+    setup = axis_setup(run, select_effects(run).included)
+    return VirtualDrive(channel=channel, bus=bus, node_id=node_id or scene.drive.node_id,
+                        initial_counts=int(run.cam.table.lookup(0)),
+                        heartbeat_ms=heartbeat_ms, **drive_options(setup))
 
 
-def _drive_options(scene: Scene, cam: CompiledCam, mechanics: Mechanics) -> dict:
-    """Keyword arguments of :class:`VirtualDrive` for a scene (all but the bus and position)."""
-    profile = cam.profile
-    speed_units = scene.master.units_per_second(profile.master_period)
-    excitation_hz = significant_harmonic_hz(cam_acceleration(profile),
-                                            profile.master_period / abs(speed_units))
-    return dict(node_id=scene.drive.node_id, mechanics=mechanics,
-                gains=_gains(scene, mechanics), substeps=scene.drive.substeps,
-                counts_per_motor_rad=(cam.scale * scene.mechanics.slave_units_per_load_radian
-                                      * mechanics.gear_ratio),
-                model=scene.drive.model, excitation_hz=excitation_hz)
+def _counts_per_motor_rad(scene: Scene, cam: CompiledCam, mechanics: Mechanics) -> float:
+    """Position counts per motor radian: the cam's counts per slave unit, the slave units per
+    load radian and the gear."""
+    return cam.scale * scene.mechanics.slave_units_per_load_radian * mechanics.gear_ratio
 
 
 def _gains(scene: Scene, mechanics: Mechanics) -> Gains:
@@ -156,9 +225,17 @@ def _gains(scene: Scene, mechanics: Mechanics) -> Gains:
     values = dict(scene.drive.gains)
     bandwidth = {k: values.pop(k) for k in ("velocity_bandwidth_hz", "position_bandwidth_hz",
                                             "integral_ratio") if k in values}
-    # The controller streams the speed as velocity offset (0x60B1): no feed-forward twice.
     feedforward = {k: values.pop(k) for k in ("velocity_feedforward", "acceleration_feedforward")
                    if k in values}
-    feedforward.setdefault("velocity_feedforward", 0.0)
+    # With feedforward "target" the streamed velocity offset (0x60B1) is added to the speed
+    # command as it is: the drive's own velocity feed-forward would add the speed twice.
+    feedforward.setdefault("velocity_feedforward",
+                           1.0 if scene.drive.feedforward == "offset" else 0.0)
     gains = Gains.from_mechanics(mechanics, **bandwidth, **feedforward)
+    if "notch_hz" not in values:
+        # As a drive's one-button tuning does: a notch on the torque command at the coupling's
+        # resonance, where the controller can still filter it (hil_sim.filters).
+        resonance = mechanics.torsional_frequency_hz()
+        if math.isfinite(resonance) and resonance < 0.5 * scene.drive.control_rate_hz:
+            values["notch_hz"] = resonance
     return replace(gains, **values) if values else gains

@@ -1,86 +1,256 @@
-"""The highest master speed at which a scene passes, by bisection over rig runs."""
+"""The highest master speed at which a scene passes.
+
+Every trial is the scene at one speed, run long enough to mean something: until the master
+has reached its cruise speed (the end of a start ramp, a cam-in's engagement) and the checks'
+settling time is over, then :data:`PERIODS_AT_CRUISE` whole cam periods at that speed. A trial
+that cannot run at all (a cam-in that cannot engage in time, a master too fast for the bus
+cycle) is a failed speed, with its reason, not the end of the search.
+
+The search brackets the limit by doubling or halving from the scene's speed, then bisects, on
+the bus-free path (:mod:`hil_sim.rig.fast`) with every effect on (the full model, which the
+default model matches within its proof). The rig is deterministic, but close to a limit a check
+does not move smoothly with the speed (sub-count set points, where in the cycle the worst sample
+falls): once the bracket is a few percent wide the search measures that scatter of the limiting
+check across the bracket and stops refining at the speed resolution it allows. The speed found
+is then confirmed over CANopen with the scene's own fidelity; should it fail there, the search
+steps down.
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
-from ecam.errors import InputError
+import numpy as np
+
+from ecam.errors import EcamError, InputError
+from ecam.validate import integer, number
+from hil_sim.rig.cam import compile_cam
+from hil_sim.rig.plan import cruise_s
 from hil_sim.rig.run import run_scene
-from hil_sim.scene import Scene, load_scene
+from hil_sim.scene import DurationSpec, Scene, load_scene
+
+#: Whole cam periods each trial runs at its cruise speed, after the master got there.
+PERIODS_AT_CRUISE = 3
+#: The longest trial the search runs [cycles]: slower speeds than that allows are not tried.
+MAX_TRIAL_CYCLES = 200_000
+#: Bracket width (as a share of the speed) at which the scatter is measured.
+_NOISE_BRACKET = 0.04
+_NOISE_SAMPLES = 5
+_CONFIRM_STEPS = 4
 
 
-def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 24) -> dict:
-    """Highest master speed at which every check passes, by bisection.
+def trial_scene(scene: Scene, speed: float) -> Scene:
+    """The scene at ``speed`` [master units/s], run until cruise and the settling time, then
+    :data:`PERIODS_AT_CRUISE` periods."""
+    at_speed = scene.with_master_speed(speed)
+    cam = compile_cam(at_speed)
+    start = max(cruise_s(at_speed, cam), at_speed.limits.settle_s)
+    seconds = start + PERIODS_AT_CRUISE * cam.profile.master_period / abs(speed)
+    cycles = math.ceil(seconds / scene.drive.cycle_s - 1e-9)
+    if cycles > MAX_TRIAL_CYCLES:
+        raise TrialTooLong(f"a trial at {abs(speed):.6g} {cam.profile.master_unit}/s needs "
+                           f"{cycles} cycles, more than the search's {MAX_TRIAL_CYCLES}")
+    return replace(at_speed, duration=DurationSpec(seconds=seconds))
+
+
+class TrialTooLong(InputError):
+    """A speed so slow that its trial would run longer than :data:`MAX_TRIAL_CYCLES`."""
+
+
+def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progress=None) -> dict:
+    """Highest master speed at which every check passes.
 
     Parameters
     ----------
     scene : Scene or str or Path
         The scene; its master speed is the starting point (its sign is kept).
     tolerance : float
-        Stop when the bracket [passing, failing] is narrower than this fraction of the
-        passing speed, > 0.
+        Stop when the bracket [passing, failing] is narrower than this share of the passing
+        speed (or than the measured resolution, if that is coarser), 0 < tolerance < 1.
     max_runs : int
-        Upper bound on rig runs.
+        Upper bound on bus-free trials, >= 4.
+    progress : callable, optional
+        Called with one line of text per trial.
 
     Returns
     -------
     dict
-        ``speed`` (highest passing speed found, None if none passed), ``failing_speed``
-        (lowest failing speed found, None if none failed), ``unit``, ``failed_checks`` (what
-        failed at ``failing_speed``), ``runs`` (speed, passed, failed checks of every run).
+        ``speed`` (highest passing speed, confirmed over CANopen; None if none passed),
+        ``unit``, ``periods_per_minute``, ``failing_speed`` (lowest failing speed, None if
+        none failed), ``failed_checks`` and ``limiting_check`` (the failing speed's failed
+        checks, and the line of the one that failed most), ``resolution`` (the speed
+        resolution the search stopped at, and ``resolution_reason``), ``trial_seconds`` (how
+        long each trial ran at the found speed), ``confirmed`` (the CANopen run at ``speed``
+        passed), ``runs`` (every trial: ``speed``, ``passed``, ``failed``, ``path``, and
+        ``reason`` for a trial that could not run).
 
     Notes
     -----
     Assumes that a scene that passes at a speed passes at every lower one (true for the
     tracking, torque and following-error limits of a cam; resonance can break it: a slower
     master can put a stronger harmonic on the coupling mode, so the answer is the highest
-    passing speed of the bracket the search found, not a proof that no faster speed passes).
+    passing speed of the bracket found, not a proof that no faster speed passes).
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    if not (isinstance(tolerance, (int, float)) and 0 < tolerance < 1):
-        raise InputError(f"tolerance {tolerance!r} should be a number in (0, 1)")
+    tolerance = number("tolerance", tolerance, minimum=0.0, maximum=1.0, strict=True)
+    if tolerance >= 1.0:
+        raise InputError(f"tolerance {tolerance!r} should be in (0, 1)")
+    max_runs = integer("max_runs", max_runs, minimum=4, maximum=10_000)
     profile = scene.cam.load_profile()
+    unit = profile.master_unit
     start = scene.master.units_per_second(profile.master_period)
     sign = math.copysign(1.0, start)
-    runs = []
+    search_fidelity = "ideal" if scene.fidelity == "ideal" else "full"
+    runs: list[dict] = []
+    reports: dict = {}
+
+    def trial(speed: float, path: str = "fast"):
+        """Run the scene at ``speed``; record the run; return its report (None: not runnable)."""
+        try:
+            candidate = trial_scene(scene, sign * speed)
+            if path == "fast":
+                candidate = candidate.with_fidelity(search_fidelity)
+            report = run_scene(candidate, path=path)
+        except TrialTooLong:
+            raise
+        except EcamError as exc:  # an infeasible trial: a failed speed, and why
+            runs.append({"speed": sign * speed, "passed": False, "failed": [], "path": path,
+                         "reason": str(exc)})
+            _tell(progress, runs, unit, f"cannot run: {exc}")
+            return None
+        runs.append({"speed": sign * speed, "passed": report.passed,
+                     "failed": [c.name for c in report.failed], "path": path})
+        reports[(speed, path)] = report
+        _tell(progress, runs, unit, "passes" if report.passed else
+              "fails " + ", ".join(c.name for c in report.failed))
+        return report
 
     def passes(speed: float) -> bool:
-        report = run_scene(scene.with_master_speed(sign * speed))
-        runs.append({"speed": sign * speed, "passed": report.passed,
-                     "failed": [c.name for c in report.failed]})
-        return report.passed
+        report = trial(speed)
+        return report is not None and report.passed
 
-    low, high = _bracket(passes, abs(start), runs, max_runs // 2)
-    while low is not None and high is not None and len(runs) < max_runs \
-            and (high - low) > tolerance * low:
+    try:
+        low, high = _bracket(passes, abs(start), runs, max_runs)
+    except TrialTooLong as exc:  # halved below what a trial can cover: nothing passes
+        low, high = None, min((abs(r["speed"]) for r in runs), default=abs(start))
+        if progress is not None:
+            progress(f"search stops: {exc}")
+    resolution, why = tolerance * (low or 0.0), f"the requested tolerance {tolerance:g}"
+    measured = False
+    while low is not None and high is not None and len(runs) < max_runs:
+        if not measured and high - low <= _NOISE_BRACKET * low:
+            measured = True
+            noise = _resolution(trial, low, high, reports)
+            if noise is not None and noise[0] > resolution:
+                resolution, why = noise
+        if high - low <= max(resolution, tolerance * low):
+            break
         middle = 0.5 * (low + high)
         if passes(middle):
             low = middle
         else:
             high = middle
-    failed = next((r["failed"] for r in runs if high is not None and abs(r["speed"]) == high), [])
-    return {"speed": None if low is None else sign * low,
-            "failing_speed": None if high is None else sign * high,
-            "unit": f"{profile.master_unit}/s", "failed_checks": failed, "runs": runs}
+    confirmed = False
+    if low is not None:
+        width = max(high - low if high is not None else tolerance * low, tolerance * low)
+        for _ in range(_CONFIRM_STEPS):
+            report = trial(low, path="canopen")
+            if report is not None and report.passed:
+                confirmed = True
+                break
+            high, low = low, low - width
+            if low <= 0.0:
+                low = None
+                break
+    return _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, reports)
+
+
+def _tell(progress, runs: list, unit: str, what: str) -> None:
+    if progress is not None:
+        run = runs[-1]
+        progress(f"trial {len(runs)}: {run['speed']:.6g} {unit}/s ({run['path']}) {what}")
 
 
 def _bracket(passes, speed: float, runs: list, max_runs: int):
     """(passing, failing) speeds around the limit, by doubling or halving from ``speed``; one
-    of them None when ``max_runs`` runs found no change."""
+    of them None when the runs ran out first."""
     low, high = None, None
+    limit = max(2, max_runs // 2)
     if passes(speed):
         low = speed
-        while len(runs) < max_runs:
+        while len(runs) < limit:
             speed *= 2.0
             if not passes(speed):
                 return low, speed
             low = speed
     else:
         high = speed
-        while len(runs) < max_runs:
+        while len(runs) < limit:
             speed /= 2.0
             if passes(speed):
                 return speed, high
             high = speed
     return low, high
+
+
+def _limiting(report) -> object:
+    """The failed check that failed most (largest value / limit; a limit of 0 exceeded counts
+    as most), or, when all passed, the one closest to its limit."""
+    failed = report.failed
+    if failed:
+        return max(failed, key=lambda c: math.inf if c.ratio is None else c.ratio)
+    candidates = [c for c in report.checks if c.ratio is not None]
+    return max(candidates, key=lambda c: c.ratio) if candidates else None
+
+
+def _resolution(trial, low: float, high: float, reports: dict):
+    """(speed resolution, why) from the scatter of the limiting check across the bracket:
+    trials at evenly spaced speeds, a straight line through its ratio to the limit, twice the
+    residual's deviation over the line's slope; None when it cannot be measured."""
+    speeds = np.linspace(low, high, _NOISE_SAMPLES + 2)[1:-1]
+    failing = reports.get((high, "fast"))
+    limiting = _limiting(failing) if failing is not None else None
+    if limiting is None or not limiting.limit:
+        return None  # a check without a scale (a limit of 0): nothing to measure it against
+    name = limiting.name
+    ratios = []
+    for speed in speeds:
+        report = trial(float(speed))
+        if report is None:
+            return None
+        ratios.append(report.check(name).ratio)
+    ratios = np.array(ratios, dtype=float)
+    if not np.all(np.isfinite(ratios)):
+        return None
+    slope, offset = np.polyfit(speeds, ratios, 1)
+    scatter = float(np.std(ratios - (slope * speeds + offset), ddof=2))
+    if slope <= 0.0 or scatter == 0.0:
+        return None
+    resolution = 2.0 * scatter / slope
+    return resolution, (f"the scatter of {name} between neighbouring speeds: +-{100 * scatter:.2g} % "
+                        f"of its limit, worth {resolution:.3g} in speed")
+
+
+def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, reports) -> dict:
+    unit = profile.master_unit
+    failed_report = reports.get((high, "fast")) if high is not None else None
+    limiting = _limiting(failed_report) if failed_report is not None else None
+    failed = next((r["failed"] for r in runs if high is not None and abs(r["speed"]) == high
+                   and r["path"] == "fast"), [])
+    speed = None if low is None else sign * low
+    trial_seconds = None
+    if low is not None:
+        canopen = reports.get((low, "canopen"))
+        trial_seconds = canopen.summary["simulated_s"] if canopen is not None else None
+    return {
+        "speed": speed, "unit": f"{unit}/s",
+        "periods_per_minute": None if speed is None else 60.0 * speed / profile.master_period,
+        "failing_speed": None if high is None else sign * high,
+        "failed_checks": failed,
+        "limiting_check": None if limiting is None else limiting.line(),
+        "resolution": resolution, "resolution_reason": why,
+        "periods_at_cruise": PERIODS_AT_CRUISE, "trial_seconds": trial_seconds,
+        "confirmed": confirmed, "runs": runs,
+    }

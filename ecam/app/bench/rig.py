@@ -9,7 +9,7 @@ import numpy as np
 
 from ecam.errors import SimulationError
 from hil_sim import SCENES_DIR, plant as plant_module
-from hil_sim.rig import run_scene
+from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.rig.cam import compile_cam
 from hil_sim.scene import load_scene
 
@@ -18,7 +18,8 @@ from .tables import median_ns
 
 
 def bench_rig(repeats: int = 1, cycles_hz=RIG_CYCLES_HZ, progress=None) -> list[dict]:
-    """Rows of kind 'rig': the shipped scene at each bus cycle rate.
+    """Rows of kind 'rig': the shipped scene at each bus cycle rate, over CANopen and bus-free;
+    and one of kind 'rig_search': find-max-speed on it, its wall time and trials.
 
     The rig is part of the package, not an option: a rig that fails to run is an error, raised,
     never a row that looks like a measurement.
@@ -30,12 +31,29 @@ def bench_rig(repeats: int = 1, cycles_hz=RIG_CYCLES_HZ, progress=None) -> list[
         rows.append(_rig_row(base, hz, repeats, run_scene))
         if progress:
             progress()
+    rows.append(_search_row(base))
     return rows
 
 
+def _search_row(base) -> dict:
+    """find-max-speed on the scene: bisection bus-free, the result confirmed over CANopen."""
+    start = time.perf_counter()
+    result = find_max_speed(base)
+    wall_s = time.perf_counter() - start
+    paths = [r["path"] for r in result["runs"]]
+    return {"kind": "rig_search", "scene": base.name, "wall_s": wall_s,
+            "speed": result["speed"], "unit": result["unit"],
+            "trials_fast": paths.count("fast"), "trials_canopen": paths.count("canopen"),
+            "limiting_check": result["limiting_check"], "resolution": result["resolution"]}
+
+
 def _rig_row(base, hz: int, repeats: int, run_scene) -> dict:
-    scene = replace(base, drive=replace(base.drive, cycle_s=1.0 / hz))
+    # the same 4 kHz controller at every bus rate: substeps follow the cycle
+    substeps = max(1, round(base.drive.control_rate_hz / hz))
+    scene = replace(base, drive=replace(base.drive, cycle_s=1.0 / hz, substeps=substeps))
     reports = [run_scene(scene) for _ in range(repeats)]
+    fast = [run_scene(scene, path="fast") for _ in range(repeats)]
+    fast.sort(key=lambda r: r.timing.get("loop_real_time_factor", 0.0))
     if not all(r.timing for r in reports):
         raise SimulationError(f"bench: scene {base.name}: the rig's report has no timing section")
     reports.sort(key=lambda r: r.timing.get("real_time_factor", 0.0))
@@ -58,6 +76,10 @@ def _rig_row(base, hz: int, repeats: int, run_scene) -> dict:
         "wall_s": t.get("wall_s"),
         "real_time_factor": t.get("real_time_factor"),
         "loop_real_time_factor": t.get("loop_real_time_factor"),
+        "fast_real_time_factor": fast[len(fast) // 2].timing.get("loop_real_time_factor"),
+        "effects_s": t.get("effects_s"),
+        "fidelity_runs": (report.summary.get("fidelity_proof") or {}).get("runs"),
+        "substeps": substeps,
         "us_per_cycle": t.get("us_per_cycle"),
         "cost_us_per_cycle": {k: (None if v is None else 1e6 * v / cycles) for k, v in per_cycle.items()},
         "setup_s": t.get("setup_s"),

@@ -1,0 +1,97 @@
+"""The bus-free path: the drive's control loop and plant fed the same set points as over
+CANopen, without frames.
+
+A run over the virtual bus spends most of its time on frames (packing, the bus, canopen's
+dispatch); the physics is a fraction of it. This path gives the axis exactly what the drive's
+CSP cycle gives it (:meth:`hil_sim.drive.VirtualDrive.run_cycle`): the set point as the RPDO
+carries it (INTEGER32 target and velocity offset), or, drive-side, the target the drive's own
+cam slot computes from the master position; the same :class:`~hil_sim.control.AxisSetup`, the
+same interpolation period as the drive decodes it from 0x60C2, and the drive's following-error
+fault (window 0x6065, time-out 0x6066 = 0). With a fault-free bus its record's physics is
+bit-identical to the CANopen run's (tested); the rig uses it to measure effects
+(:mod:`hil_sim.rig.fidelity`) and for find-max-speed's bisection (:mod:`hil_sim.rig.search`).
+What it does not have: bus faults, bus load and arbitration, the set-up by SDO.
+"""
+
+from __future__ import annotations
+
+from hil_sim.control import AxisSetup
+from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE, CamSlot
+from hil_sim.drive.cia402 import (
+    OPERATION_ENABLED, STATUSWORD, SW_FOLLOWING_COMMAND, SW_REMOTE,
+)
+from hil_sim.drive.emcy import EMCY_FOLLOWING_ERROR
+from hil_sim.drive.objects import (
+    CAM_MODE, CAM_STATUS, MASTER_POSITION, interpolation_period_s, wrap_int32,
+)
+from hil_sim.drive.power_state import FOLLOWING_ERROR_WINDOW_OFF
+from hil_sim.rig.plan import PreparedRun, wire_set_points
+from hil_sim.rig.record import Record, Recorder
+from hil_sim.scene import interpolation_period
+
+#: The statusword a drive in OPERATION ENABLED, cyclic synchronous position, reports.
+_STATUSWORD_CSP = STATUSWORD[OPERATION_ENABLED] | SW_REMOTE | SW_FOLLOWING_COMMAND
+
+
+def drive_cycle_s(cycle_s: float) -> float:
+    """The interpolation period as the drive decodes it from the 0x60C2 the rig writes."""
+    return interpolation_period_s(*interpolation_period(cycle_s))
+
+
+def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
+    """Run the planned cycles on the axis alone; the record has no bus and no frames.
+
+    Parameters
+    ----------
+    run : PreparedRun
+    setup : AxisSetup
+        The axis as the drive would be configured (:func:`hil_sim.rig.run.axis_setup`).
+
+    Returns
+    -------
+    Record
+        ``path`` ``"fast"``; ``bus`` empty; ``statusword`` the drive's CSP statusword.
+    """
+    scene, plan = run.scene, run.plan
+    cycle_s = drive_cycle_s(scene.drive.cycle_s)
+    axis = setup.build(cycle_s, plan.initial_counts)
+    axis.restart()  # OPERATION ENABLED starts from the actual position, as the drive's
+    drive_side = scene.cam_mode == "drive"
+    first, second = wire_set_points(plan, drive_side)
+    first = first.tolist()
+    recorder = Recorder(plan.cycles)
+    recorder.series["statusword"][:] = _STATUSWORD_CSP
+    following = recorder.series["following_error"]
+    window = scene.drive.following_error_window
+    monitored = window != FOLLOWING_ERROR_WINDOW_OFF
+    if drive_side:
+        values = {CAM_STATUS: 0, CAM_MODE: 0}
+        cam = CamSlot(values)
+        cam.verify_download(run.cam.table.to_bytes())
+        cam.write_command(CAM_COMMAND_ACTIVATE)
+        cam.write_mode(CAM_MODE_DRIVE_SIDE)
+    else:
+        second = second.tolist()
+    stopped = None
+    emcy = []
+    cycle = axis.cycle
+    probe = recorder.probe
+    for k in range(plan.cycles):
+        if drive_side:
+            values[MASTER_POSITION] = first[k]
+            cycle(*cam.target(cycle_s))
+        else:
+            cycle(first[k], second[k])
+        error = axis.following_error_counts
+        following[k] = wrap_int32(error)
+        probe(k, axis)
+        recorder.ran = k + 1
+        if monitored and abs(error) > window:
+            # 0x6066 = 0: the drive faults in the cycle the error leaves its window
+            time_s = (k + 1) * cycle_s
+            emcy.append((round(time_s, 9), EMCY_FOLLOWING_ERROR))
+            stopped = f"drive fault 0x{EMCY_FOLLOWING_ERROR:04X} at cycle {k} (t {time_s:.6g} s)"
+            break
+    return recorder.record(stopped=stopped, emcy=emcy, model=axis.model,
+                           model_reason=axis.model_reason, setup={}, bus={}, faults=None,
+                           path="fast")

@@ -54,6 +54,19 @@ class Measurement:
     wrap_max_error_counts: float | None = None
     wrap_max_error_at_master_counts: int | None = None
 
+    def __post_init__(self):
+        # Python numbers, not the numpy scalars the measurement computes them as (see Certificate).
+        for name in ("max_error_counts", "max_error_at_master", "interpolation_error_counts",
+                     "max_slope_error_counts_per_count", "wrap_max_error_counts"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, float(value))
+        for name in ("evaluated_counts", "max_error_at_master_counts", "wrap_evaluated_counts",
+                     "wrap_max_error_at_master_counts"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, int(value))
+
 
 @dataclass(frozen=True)
 class Certificate:
@@ -97,8 +110,19 @@ class Certificate:
     net_stroke_units: float = 0.0
     net_stroke_residual_counts: float = 0.0
 
+    def __post_init__(self):
+        # The compiler computes these in numpy: stored as Python floats, so the repr is plain and
+        # equality is a float's (the JSON written from them is the same either way).
+        for name in ("slave_counts_per_unit", "predicted_interpolation_counts", "quantization_counts",
+                     "predicted_error_counts", "net_stroke_units", "net_stroke_residual_counts"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "joints_off_points", tuple(float(x) for x in self.joints_off_points))
+        if self.tolerance_counts is not None:
+            object.__setattr__(self, "tolerance_counts", float(self.tolerance_counts))
+
     @property
     def predicted_error_units(self) -> float:
+        """The certified bound :attr:`predicted_error_counts` in slave user units."""
         return self.predicted_error_counts / self.slave_counts_per_unit
 
     @property
@@ -107,9 +131,33 @@ class Certificate:
         return None if self.measurement is None else self.measurement.max_error_counts
 
     def measured(self, measurement: Measurement) -> "Certificate":
+        """This certificate with ``measurement`` (the lookup evaluated against the profile).
+
+        Parameters
+        ----------
+        measurement : Measurement
+
+        Returns
+        -------
+        Certificate
+            A new certificate; this one is unchanged (it is frozen).
+        """
         return replace(self, measurement=measurement)
 
     def for_tolerance(self, tolerance_counts: float) -> "Certificate":
+        """This certificate, recording the tolerance the table was chosen for.
+
+        Parameters
+        ----------
+        tolerance_counts : float
+            The tolerance in slave counts (``tolerance_counts`` and ``tolerance_units`` in
+            :meth:`report`).
+
+        Returns
+        -------
+        Certificate
+            A new certificate; this one is unchanged (it is frozen).
+        """
         return replace(self, tolerance_counts=float(tolerance_counts))
 
     def report(self, table) -> dict:

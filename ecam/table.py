@@ -10,13 +10,16 @@ from __future__ import annotations
 import math
 import struct
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 
 from .certificate import Certificate
-from .errors import InputError, TableFormatError
+from .errors import TableFormatError
+from .validate import fail
 
 __all__ = ["TableFormat", "CamTable", "LOADER_STATUS", "loader_proof", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "FORMAT_VERSIONS",
            "MAGIC", "MAX_NET_DENOMINATOR"]
@@ -66,6 +69,7 @@ class TableFormat:
 
     @property
     def interp(self) -> str:
+        """The interpolation kind of ``degree``: ``"linear"``, ``"cubic"`` or ``"quintic"``."""
         return _KIND_NAMES[self.degree]
 
     @property
@@ -80,57 +84,26 @@ class TableFormat:
 
     @property
     def values_per_point(self) -> int:
+        """int32 values stored per point: position, then slope (cubic), then curvature (quintic)."""
         return (self.degree + 1) // 2
 
     @property
     def payload_bytes(self) -> int:
+        """Bytes after the header: ``points x 4 x values_per_point``."""
         return self.points * 4 * self.values_per_point
 
     def validate(self) -> None:
-        """Raise TableFormatError naming the first field that breaks its rule."""
-        def bad(name, value, rule):
-            raise TableFormatError(f"{name} {value!r} should be {rule}")
+        """Raise TableFormatError naming the first field that breaks its rule.
 
-        if self.degree not in _KIND_NAMES:
-            bad("degree", self.degree, "1, 3 or 5")
-        if not 2 <= self.points <= 2**32 - 1:
-            bad("points", self.points, "in 2..2^32-1")
-        if not 2 <= self.master_counts <= MAX_MASTER_COUNTS:
-            bad("master_counts", self.master_counts, f"in 2..{MAX_MASTER_COUNTS}")
-        if not 1 <= self.step_counts <= MAX_STEP_COUNTS:
-            bad("step_counts", self.step_counts, f"in 1..{MAX_STEP_COUNTS}")
-        if (self.points - 1) * self.step_counts != self.master_counts:
-            bad("step_counts", self.step_counts, f"master_counts / (points - 1) = {self.master_counts}/{self.points - 1}")
-        h = self.step_counts
-        pow2 = h & (h - 1) == 0
-        shift = h.bit_length() - 1 if pow2 else -1
-        if self.step_shift != shift:
-            bad("step_shift", self.step_shift, f"{shift} for step_counts {h}")
-        need = (h - 1).bit_length()  # ceil(log2 h)
-        if pow2 and self.tau_bits != need:
-            bad("tau_bits", self.tau_bits, f"{need} for step_counts {h}")
-        if not need <= self.tau_bits <= 30:
-            bad("tau_bits", self.tau_bits, f"in {need}..30")
-        if self.tau_recip != -(-(1 << (32 + self.tau_bits)) // h):
-            bad("tau_recip", self.tau_recip, "ceil(2^(32+tau_bits)/step_counts)")
-        if not 0 <= self.position_bits <= 30:
-            bad("position_bits", self.position_bits, "in 0..30")
-        if not self.position_bits <= self.work_bits <= MAX_WORK_BITS:
-            bad("work_bits", self.work_bits, f"in position_bits={self.position_bits}..{MAX_WORK_BITS}")
-        if self.degree == 1 and (self.work_bits != self.position_bits or self.slope_bits or self.curvature_bits):
-            bad("work_bits", self.work_bits, "position_bits (with slope_bits and curvature_bits 0) for linear")
-        if not 0 <= self.slope_bits <= self.work_bits:
-            bad("slope_bits", self.slope_bits, f"in 0..work_bits={self.work_bits}")
-        if self.degree != 5 and self.curvature_bits:
-            bad("curvature_bits", self.curvature_bits, "0 unless quintic")
-        if not 0 <= self.curvature_bits <= self.work_bits:
-            bad("curvature_bits", self.curvature_bits, f"in 0..work_bits={self.work_bits}")
-        final = SLOPE_BITS + self.tau_bits + self.work_bits - self.slope_preshift
-        if self.slope_preshift < 0 or not 0 <= final <= 63:
-            bad("slope_preshift", self.slope_preshift, "such that 0 <= 16 + tau_bits + work_bits - slope_preshift <= 63")
-        rule = _net_stroke_rule(self.periodic, self.net_stroke_num, self.net_stroke_den)
-        if rule:
-            bad("net_stroke", f"{self.net_stroke_num}/{self.net_stroke_den}", rule)
+        The rules and their order are the blob loader's (:data:`FIELD_RULES`, FORMAT.md
+        "Loader"), without the rules about bytes only a blob has (flags, reserved bytes, payload
+        size); the error's ``status`` is the C loader's status name for the rule.
+        """
+        failure = broken_field_rule(self)
+        if failure is not None:
+            error = TableFormatError(failure[1])
+            error.status = failure[0]
+            raise error
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,22 +151,38 @@ class CamTable:
     # convenience -----------------------------------------------------------------------------
     @property
     def report(self) -> dict:
+        """The certificate joined with the table's facts: the JSON contract of ``ecam compile
+        --json`` (``interp``, ``points``, ``bytes``, ``crc32``, ``max_error_counts``,
+        ``max_error_units``, ``predicted_error_units``, ...).
+
+        Returns
+        -------
+        dict
+            A new dictionary on every access, recomputed from :attr:`certificate` and the table
+            (the CRC included): keep it rather than reading it in a loop. ``{}`` for a table
+            loaded from bytes, which has no certificate.
+        """
         return {} if self.certificate is None else self.certificate.report(self)
 
     @property
     def interp(self) -> str:
+        """The interpolation kind: ``"linear"``, ``"cubic"`` or ``"quintic"``."""
         return self.format.interp
 
     @property
     def points(self) -> int:
+        """Stored points (intervals + 1), at master counts ``i * step_counts``."""
         return self.format.points
 
     @property
     def master_counts(self) -> int:
+        """The master period in counts (the table's span for a cam that is not periodic)."""
         return self.format.master_counts
 
     @property
     def periodic(self) -> bool:
+        """True when the lookup wraps the master modulo :attr:`master_counts`; False when it holds
+        the end positions outside ``[0, master_counts)``."""
         return self.format.periodic
 
     @property
@@ -208,10 +197,12 @@ class CamTable:
 
     @property
     def crc32(self) -> int:
+        """CRC-32 (zlib's, as the blob header stores it) of the little-endian payload."""
         return zlib.crc32(self._payload())
 
     @property
     def nbytes(self) -> int:
+        """Size of the blob :meth:`to_bytes` writes: the 64-byte header plus the payload."""
         return HEADER_BYTES + self.format.payload_bytes
 
     # lookup ------------------------------------------------------------------------------------
@@ -319,7 +310,7 @@ class CamTable:
         for a drive loop that asks once per cycle. Python's >> floors like asr, and the
         compiler's overflow proof makes unbounded ints agree with int64."""
         if not -(2**63) <= m < 2**63:
-            raise InputError(f"master_counts {m} should fit int64")
+            raise fail("master_counts", m, _INT64_RANGE)
         f = self.format
         if f.periodic:
             turns, local = divmod(m, f.master_counts)
@@ -414,24 +405,19 @@ class CamTable:
             _reject("ECAM_E_HEADER_SIZE", f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
         if zlib.crc32(data[: HEADER_BYTES - 4]) != header_crc:
             _reject("ECAM_E_HEADER_CRC", f"blob header_crc32 0x{header_crc:08x} does not match the header")
-        values_per_point = {1: 1, 3: 2, 5: 3}.get(degree)
         net_num, net_den = 0, 1
         if version == 2:  # bytes 48..59 hold the net stroke; only 29..31 stay reserved
             (net_num, net_den), reserved2 = _NET.unpack(reserved2), b""
-        _check_fields(degree, flags, reserved + reserved2, points, master_counts, step_counts, step_shift,
-                      tau_bits, tau_recip, position_bits, work_bits, slope_bits, curvature_bits, preshift,
-                      payload_bytes, values_per_point)
-        rule = _net_stroke_rule(bool(flags & 1), net_num, net_den)
-        if rule:
-            _reject("ECAM_E_NET_STROKE", f"blob net stroke {net_num}/{net_den} counts per period should be {rule}")
+        fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
+                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits, net_num, net_den)
+        failure = broken_field_rule(fmt, BlobBytes(flags, reserved + reserved2, payload_bytes))
+        if failure is not None:
+            _reject(failure[0], f"blob {failure[1]}")
         if len(data) != HEADER_BYTES + payload_bytes:
             _reject("ECAM_E_LENGTH", f"blob length {len(data)} should be {HEADER_BYTES + payload_bytes}")
         payload = data[HEADER_BYTES:]
         if zlib.crc32(payload) != payload_crc:
             _reject("ECAM_E_PAYLOAD_CRC", f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
-        fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
-                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits, net_num, net_den)
-        fmt.validate()  # the same rules as _check_fields: never raises here
         arrays = np.frombuffer(payload, dtype="<i4").reshape(fmt.values_per_point, points)
         positions, slopes = arrays[0], arrays[1] if degree >= 3 else None
         curvatures = arrays[2] if degree == 5 else None
@@ -465,50 +451,113 @@ def _reject(status: str, message: str):
     raise error
 
 
-def _check_fields(degree, flags, reserved, points, master_counts, step_counts, step_shift, tau_bits, tau_recip,
-                  position_bits, work_bits, slope_bits, curvature_bits, preshift, payload_bytes, values_per_point):
-    """The field rules of FORMAT.md in the C loader's order (each rule's own status)."""
-    if values_per_point is None:
-        _reject("ECAM_E_DEGREE", f"blob degree {degree} should be 1, 3 or 5")
-    if flags & ~1:
-        _reject("ECAM_E_FLAGS", f"blob flags 0x{flags:02x} should have no bit but bit 0 (periodic)")
-    if any(reserved):
-        _reject("ECAM_E_RESERVED", "blob reserved bytes 29..31 (and 48..59 in version 1) should be 0")
-    if points < 2:
-        _reject("ECAM_E_POINTS", f"blob points {points} should be >= 2")
-    if not 2 <= master_counts <= MAX_MASTER_COUNTS:
-        _reject("ECAM_E_MASTER_COUNTS", f"blob master_counts {master_counts} should be in 2..{MAX_MASTER_COUNTS}")
-    if not 1 <= step_counts <= MAX_STEP_COUNTS or (points - 1) * step_counts != master_counts:
-        _reject("ECAM_E_STEP_COUNTS", f"blob step_counts {step_counts} should be in 1..{MAX_STEP_COUNTS} "
-                f"with (points - 1) * step_counts = master_counts {master_counts} (points {points})")
-    pow2 = step_counts & (step_counts - 1) == 0
-    k = step_counts.bit_length() - 1
-    if step_shift != (k if pow2 else -1):
-        _reject("ECAM_E_STEP_SHIFT", f"blob step_shift {step_shift} should be {k if pow2 else -1} "
-                f"for step_counts {step_counts}")
-    need = (step_counts - 1).bit_length()
-    if tau_bits > 30 or step_counts > 1 << tau_bits or (pow2 and tau_bits != k):
-        rule = f"{k}" if pow2 else f"in {need}..30"
-        _reject("ECAM_E_TAU_BITS", f"blob tau_bits {tau_bits} should be {rule} for step_counts {step_counts}")
-    if tau_recip != -(-(1 << (32 + tau_bits)) // step_counts):
-        _reject("ECAM_E_TAU_RECIP", f"blob tau_recip {tau_recip} should be ceil(2^(32+tau_bits)/step_counts)")
-    if position_bits > 30:
-        _reject("ECAM_E_POSITION_BITS", f"blob position_bits {position_bits} should be in 0..30")
-    if not position_bits <= work_bits <= MAX_WORK_BITS or (degree == 1 and work_bits != position_bits):
-        rule = f"position_bits = {position_bits} for linear" if degree == 1 else f"in {position_bits}..{MAX_WORK_BITS}"
-        _reject("ECAM_E_WORK_BITS", f"blob work_bits {work_bits} should be {rule}")
-    if slope_bits > work_bits or (degree == 1 and slope_bits):
-        _reject("ECAM_E_SLOPE_BITS", f"blob slope_bits {slope_bits} should be "
-                f"{'0 for linear' if degree == 1 else f'in 0..work_bits = {work_bits}'}")
-    if curvature_bits > work_bits or (degree != 5 and curvature_bits):
-        _reject("ECAM_E_CURVATURE_BITS", f"blob curvature_bits {curvature_bits} should be "
-                f"{'0 unless quintic' if degree != 5 else f'in 0..work_bits = {work_bits}'}")
-    scaled = SLOPE_BITS + tau_bits + work_bits
-    if not 0 <= scaled - preshift <= 63:
-        _reject("ECAM_E_SLOPE_PRESHIFT", f"blob slope_preshift {preshift} should be in {max(0, scaled - 63)}..{scaled} "
-                "(16 + tau_bits + work_bits - slope_preshift in 0..63)")
-    if payload_bytes != points * 4 * values_per_point:
-        _reject("ECAM_E_PAYLOAD_BYTES", f"blob payload_bytes {payload_bytes} should be {points * 4 * values_per_point}")
+class BlobBytes(NamedTuple):
+    """The header bytes of a blob that a :class:`TableFormat` has no field for."""
+
+    flags: int
+    reserved: bytes  # 29..31, and 48..59 in version 1
+    payload_bytes: int
+
+
+class FieldRule(NamedTuple):
+    """One field rule of FORMAT.md: ``broken(format, blob)`` is true when the fields break it,
+    ``says(format, blob)`` what the field holds and what it should be (one line, no status)."""
+
+    status: str  # the C loader's status name (LOADER_STATUS)
+    broken: Callable[[TableFormat, BlobBytes | None], bool]
+    says: Callable[[TableFormat, BlobBytes | None], str]
+    blob_only: bool = False  # about bytes a TableFormat does not hold
+
+
+def _pow2(h: int) -> bool:
+    return h & (h - 1) == 0
+
+
+def _shift_of(h: int) -> int:
+    """step_shift for step_counts ``h``: log2 h for a power of two, else -1."""
+    return h.bit_length() - 1 if _pow2(h) else -1
+
+
+def _tau_bits_needed(h: int) -> int:
+    return (h - 1).bit_length()  # ceil(log2 h)
+
+
+def _tau_bits_expected(h: int) -> str:
+    return f"{_shift_of(h)}" if _pow2(h) else f"in {_tau_bits_needed(h)}..30"
+
+
+def _scaled_bits(f: TableFormat) -> int:
+    return SLOPE_BITS + f.tau_bits + f.work_bits
+
+
+#: The field rules of FORMAT.md in the C loader's order (ecam_table_init), each with its status:
+#: the one statement of them. :meth:`CamTable.from_bytes` applies all of them, with the blob's own
+#: bytes; :meth:`TableFormat.validate` those about the format's fields. The bounds are written so
+#: that the values a Python caller can give (negative, or past a header field's width) break them
+#: too; a blob's header types cannot hold those.
+FIELD_RULES = (
+    FieldRule("ECAM_E_DEGREE", lambda f, b: f.degree not in _KIND_NAMES,
+              lambda f, b: f"degree {f.degree} should be 1, 3 or 5"),
+    FieldRule("ECAM_E_FLAGS", lambda f, b: b.flags & ~1,
+              lambda f, b: f"flags 0x{b.flags:02x} should have no bit but bit 0 (periodic)", blob_only=True),
+    FieldRule("ECAM_E_RESERVED", lambda f, b: any(b.reserved),
+              lambda f, b: "reserved bytes 29..31 (and 48..59 in version 1) should be 0", blob_only=True),
+    FieldRule("ECAM_E_POINTS", lambda f, b: not 2 <= f.points <= 2**32 - 1,
+              lambda f, b: f"points {f.points} should be {'>= 2' if f.points < 2 else '<= 2^32-1'}"),
+    FieldRule("ECAM_E_MASTER_COUNTS", lambda f, b: not 2 <= f.master_counts <= MAX_MASTER_COUNTS,
+              lambda f, b: f"master_counts {f.master_counts} should be in 2..{MAX_MASTER_COUNTS}"),
+    FieldRule("ECAM_E_STEP_COUNTS",
+              lambda f, b: (not 1 <= f.step_counts <= MAX_STEP_COUNTS
+                            or (f.points - 1) * f.step_counts != f.master_counts),
+              lambda f, b: f"step_counts {f.step_counts} should be in 1..{MAX_STEP_COUNTS} with (points - 1) * "
+                           f"step_counts = master_counts {f.master_counts} (points {f.points})"),
+    FieldRule("ECAM_E_STEP_SHIFT", lambda f, b: f.step_shift != _shift_of(f.step_counts),
+              lambda f, b: f"step_shift {f.step_shift} should be {_shift_of(f.step_counts)} for step_counts "
+                           f"{f.step_counts}"),
+    FieldRule("ECAM_E_TAU_BITS",
+              lambda f, b: (f.tau_bits > 30 or f.tau_bits < _tau_bits_needed(f.step_counts)
+                            or (_pow2(f.step_counts) and f.tau_bits != _shift_of(f.step_counts))),
+              lambda f, b: f"tau_bits {f.tau_bits} should be {_tau_bits_expected(f.step_counts)} for step_counts "
+                           f"{f.step_counts}"),
+    FieldRule("ECAM_E_TAU_RECIP", lambda f, b: f.tau_recip != -(-(1 << (32 + f.tau_bits)) // f.step_counts),
+              lambda f, b: f"tau_recip {f.tau_recip} should be ceil(2^(32+tau_bits)/step_counts)"),
+    FieldRule("ECAM_E_POSITION_BITS", lambda f, b: not 0 <= f.position_bits <= 30,
+              lambda f, b: f"position_bits {f.position_bits} should be in 0..30"),
+    FieldRule("ECAM_E_WORK_BITS",
+              lambda f, b: (not f.position_bits <= f.work_bits <= MAX_WORK_BITS
+                            or (f.degree == 1 and f.work_bits != f.position_bits)),
+              lambda f, b: f"work_bits {f.work_bits} should be "
+                           + (f"position_bits = {f.position_bits} for linear" if f.degree == 1
+                              else f"in {f.position_bits}..{MAX_WORK_BITS}")),
+    FieldRule("ECAM_E_SLOPE_BITS",
+              lambda f, b: not 0 <= f.slope_bits <= f.work_bits or (f.degree == 1 and f.slope_bits),
+              lambda f, b: f"slope_bits {f.slope_bits} should be "
+                           f"{'0 for linear' if f.degree == 1 else f'in 0..work_bits = {f.work_bits}'}"),
+    FieldRule("ECAM_E_CURVATURE_BITS",
+              lambda f, b: not 0 <= f.curvature_bits <= f.work_bits or (f.degree != 5 and f.curvature_bits),
+              lambda f, b: f"curvature_bits {f.curvature_bits} should be "
+                           f"{'0 unless quintic' if f.degree != 5 else f'in 0..work_bits = {f.work_bits}'}"),
+    FieldRule("ECAM_E_SLOPE_PRESHIFT",
+              lambda f, b: f.slope_preshift < 0 or not 0 <= _scaled_bits(f) - f.slope_preshift <= 63,
+              lambda f, b: f"slope_preshift {f.slope_preshift} should be in {max(0, _scaled_bits(f) - 63)}.."
+                           f"{_scaled_bits(f)} (16 + tau_bits + work_bits - slope_preshift in 0..63)"),
+    FieldRule("ECAM_E_PAYLOAD_BYTES", lambda f, b: b.payload_bytes != f.payload_bytes,
+              lambda f, b: f"payload_bytes {b.payload_bytes} should be {f.payload_bytes}", blob_only=True),
+    FieldRule("ECAM_E_NET_STROKE", lambda f, b: bool(_net_stroke_rule(f.periodic, f.net_stroke_num, f.net_stroke_den)),
+              lambda f, b: f"net stroke {f.net_stroke_num}/{f.net_stroke_den} counts per period should be "
+                           f"{_net_stroke_rule(f.periodic, f.net_stroke_num, f.net_stroke_den)}"),
+)
+
+
+def broken_field_rule(fmt: TableFormat, blob: BlobBytes | None = None) -> tuple[str, str] | None:
+    """(status, message) of the first rule of :data:`FIELD_RULES` that ``fmt`` (and the blob's own
+    bytes, if given; else the rules about them are skipped) breaks, or None."""
+    for rule in FIELD_RULES:
+        if rule.blob_only and blob is None:
+            continue
+        if rule.broken(fmt, blob):
+            return rule.status, rule.says(fmt, blob)
+    return None
 
 
 # Bernstein coefficients of step 5's polynomial on [0, 1], times Dn = lcm C(n, k):
@@ -663,6 +712,20 @@ def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_b
     return True, "", preshift
 
 
+def divisors(n: int) -> list[int]:
+    """Every divisor of ``n`` >= 1, ascending: the interval counts a table of ``n`` master counts
+    can have (``(points - 1) * step_counts == master_counts``)."""
+    small, large = [], []
+    d = 1
+    while d * d <= n:
+        if n % d == 0:
+            small.append(d)
+            if d * d != n:
+                large.append(n // d)
+        d += 1
+    return small + large[::-1]
+
+
 def _net_stroke_rule(periodic: bool, num: int, den: int) -> str:
     """The rule a net stroke ``num / den`` counts per period breaks, or "" (FORMAT.md, loader
     rule -34): a reduced fraction with 1 <= den <= 2^32 - 1, less than 2^31 counts per period,
@@ -695,20 +758,30 @@ def net_stroke_term(turns, num: int, den: int) -> np.ndarray:
     return term
 
 
+_INT64_RANGE = "in -2^63..2^63-1 (int64 counts)"
+
+
 def _as_counts(master_counts) -> np.ndarray:
+    """``master_counts`` as int64, or the one-line InputError naming the first value refused."""
     if isinstance(master_counts, (bool, np.bool_)):
-        raise InputError(f"master_counts {master_counts!r} should be an integer")
-    array = np.asarray(master_counts)
+        raise fail("master_counts", master_counts, "an integer (int64 counts)")
+    try:
+        array = np.asarray(master_counts)
+    except (ValueError, TypeError):  # ragged nesting
+        raise fail("master_counts", master_counts, "integers (int64 counts)") from None
+    whole = "an integer (int64 counts)" if array.ndim == 0 else "integers (int64 counts)"
+    if array.dtype == object:  # Python ints beyond int64, or a mix of types
+        for value in array.flat:
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                raise fail("master_counts", value, whole)
+            if not -(2**63) <= value < 2**63:
+                raise fail("master_counts", value, _INT64_RANGE)
+        return array.astype(np.int64)
     if array.dtype.kind not in "iu":
-        if array.dtype == object:
-            try:
-                array = array.astype(np.int64)
-            except OverflowError:
-                raise InputError("master_counts should fit int64") from None
-        else:
-            raise InputError(f"master_counts of dtype {array.dtype} should be integers")
+        first = array.flat[0].item() if array.size else master_counts
+        raise fail("master_counts", first, f"{whole}, not {array.dtype}")
     if array.dtype == np.uint64 and array.size and array.max() > np.iinfo(np.int64).max:
-        raise InputError("master_counts should fit int64")
+        raise fail("master_counts", int(array.max()), _INT64_RANGE)
     return array.astype(np.int64, copy=False)
 
 

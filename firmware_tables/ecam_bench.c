@@ -29,46 +29,11 @@
 #include <string.h>
 #include <time.h>
 
+#include "ecam_host_io.h"
 #include "ecam_table.h"
 
 #define ECAM_BENCH_MAX_REPEATS 1000
 #define ECAM_BENCH_MIX UINT64_C(0x9E3779B97F4A7C15)
-
-/* Whole-file read into a fresh buffer; NULL on any error. */
-static uint8_t *ecam_bench_read_file(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    uint8_t *data = NULL;
-    size_t cap = 0;
-    size_t used = 0;
-
-    if (f == NULL) {
-        return NULL;
-    }
-    for (;;) {
-        if (used == cap) {
-            size_t new_cap = cap == 0 ? 65536u : cap * 2u;
-            uint8_t *grown = realloc(data, new_cap);
-            if (grown == NULL) {
-                break;
-            }
-            data = grown;
-            cap = new_cap;
-        }
-        used += fread(data + used, 1, cap - used, f);
-        if (used < cap) { /* short read: end of file or an error */
-            if (ferror(f)) {
-                break;
-            }
-            fclose(f);
-            *len = used;
-            return data;
-        }
-    }
-    free(data);
-    fclose(f);
-    return NULL;
-}
 
 /* Little-endian int64 from 8 bytes, independent of host byte order and alignment. */
 static int64_t ecam_bench_get_i64(const uint8_t *p)
@@ -122,7 +87,7 @@ static uint64_t ecam_bench_pass(const ecam_table *table, const int64_t *queries,
 static int ecam_bench_file(const ecam_table *table, const char *path, int repeats)
 {
     size_t len = 0;
-    uint8_t *raw = ecam_bench_read_file(path, &len);
+    uint8_t *raw = ecam_host_read_file(path, &len);
     int64_t *queries;
     double *times;
     size_t count;
@@ -197,7 +162,7 @@ int main(int argc, char **argv)
                 ECAM_BENCH_MAX_REPEATS);
         return 2;
     }
-    blob = ecam_bench_read_file(argv[1], &len);
+    blob = ecam_host_read_file(argv[1], &len);
     if (blob == NULL) {
         fprintf(stderr, "ecam_bench: cannot read %s\n", argv[1]);
         return 2;

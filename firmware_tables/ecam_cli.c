@@ -15,46 +15,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ecam_host_io.h"
 #include "ecam_table.h"
 
 #define ECAM_CLI_IO_BUFFER (1u << 16)
 #define ECAM_CLI_LINE_MAX 256
-
-/* Whole-file read, since the runtime validates the blob as one contiguous buffer. */
-static uint8_t *ecam_cli_read_file(const char *path, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    uint8_t *data = NULL;
-    size_t cap = 0;
-    size_t used = 0;
-
-    if (f == NULL) {
-        return NULL;
-    }
-    for (;;) {
-        if (used == cap) {
-            size_t new_cap = cap == 0 ? 4096u : cap * 2u;
-            uint8_t *grown = realloc(data, new_cap);
-            if (grown == NULL) {
-                break;
-            }
-            data = grown;
-            cap = new_cap;
-        }
-        used += fread(data + used, 1, cap - used, f);
-        if (used < cap) { /* fread stops short only at end of file or on an error */
-            if (ferror(f)) {
-                break;
-            }
-            fclose(f);
-            *len = used;
-            return data;
-        }
-    }
-    free(data);
-    fclose(f);
-    return NULL;
-}
 
 /* Loads and validates one blob; prints the error line itself so both modes report alike. */
 static int ecam_cli_load(const char *path, ecam_table *table, uint8_t **blob)
@@ -62,7 +27,7 @@ static int ecam_cli_load(const char *path, ecam_table *table, uint8_t **blob)
     size_t len = 0;
     int status;
 
-    *blob = ecam_cli_read_file(path, &len);
+    *blob = ecam_host_read_file(path, &len);
     if (*blob == NULL) {
         fprintf(stderr, "ecam_cli: cannot read %s\n", path);
         return 2;

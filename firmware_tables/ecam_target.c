@@ -25,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ecam_host_io.h"
 #include "ecam_minimal.h"
 #include "ecam_table.h"
 
@@ -33,42 +34,6 @@
 #else
 #define ECAM_TARGET_PAINT 0
 #endif
-
-/* Whole-file read into a fresh buffer with `slack` spare bytes in front; NULL on any error. */
-static unsigned char *read_file(const char *path, size_t slack, size_t *len)
-{
-    FILE *f = fopen(path, "rb");
-    unsigned char *data = NULL;
-    size_t cap = 0;
-    size_t used = 0;
-
-    if (f == NULL) {
-        return NULL;
-    }
-    for (;;) {
-        if (used == cap) {
-            size_t new_cap = cap == 0 ? 4096u : cap * 2u;
-            unsigned char *grown = realloc(data, slack + new_cap);
-            if (grown == NULL) {
-                break;
-            }
-            data = grown;
-            cap = new_cap;
-        }
-        used += fread(data + slack + used, 1, cap - used, f);
-        if (used < cap) {
-            if (ferror(f)) {
-                break;
-            }
-            fclose(f);
-            *len = used;
-            return data;
-        }
-    }
-    free(data);
-    fclose(f);
-    return NULL;
-}
 
 static int64_t get_i64(const unsigned char *p)
 {
@@ -113,8 +78,8 @@ static int load(run_input *in, const char *blob_path, const char *query_path)
     size_t len = 0;
     int status;
 
-    in->blob_storage = read_file(blob_path, 0, &in->blob_len);
-    in->query_bytes = query_path == NULL ? NULL : read_file(query_path, 0, &len);
+    in->blob_storage = ecam_host_read_file(blob_path, &in->blob_len);
+    in->query_bytes = query_path == NULL ? NULL : ecam_host_read_file(query_path, &len);
     if (in->blob_storage == NULL || (query_path != NULL && in->query_bytes == NULL) || len % 8u) {
         fprintf(stderr, "ecam_target: cannot read %s\n", in->blob_storage == NULL ? blob_path : query_path);
         return 2;
@@ -188,7 +153,7 @@ static int do_status(int count, char **paths)
     for (i = 0; i < count; i++) {
         ecam_table t;
         size_t len = 0;
-        unsigned char *blob = read_file(paths[i], 0, &len);
+        unsigned char *blob = ecam_host_read_file(paths[i], &len);
 
         if (blob == NULL) {
             fprintf(stderr, "ecam_target: cannot read %s\n", paths[i]);
@@ -219,7 +184,7 @@ static int count_file(const char *path, const ecam_table *table, const int32_t *
                       unsigned degree)
 {
     size_t len = 0;
-    unsigned char *bytes = read_file(path, 0, &len);
+    unsigned char *bytes = ecam_host_read_file(path, &len);
     int64_t *queries;
     uint64_t checksum = 0;
     size_t count;
@@ -266,7 +231,7 @@ static int count_file(const char *path, const ecam_table *table, const int32_t *
 static int do_count(const char *blob_path, const char *what, int files, char **query_paths)
 {
     size_t len = 0;
-    unsigned char *blob = read_file(blob_path, 0, &len);
+    unsigned char *blob = ecam_host_read_file(blob_path, &len);
     ecam_table table;
     int32_t *arrays = NULL;
     uint32_t points = 0;

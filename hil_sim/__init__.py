@@ -16,7 +16,7 @@ The rig in four calls (see the README's "Python API")::
 * :class:`VirtualDrive`: the CiA 402 drive alone, for a CANopen master of your own.
 
 Everything but ``SCENES_DIR`` is imported on first use, so ``import hil_sim`` (as every ``ecam``
-command does) loads no CAN stack; reading a scene or running one does.
+command does) loads no CAN stack; running one does; reading a scene does not.
 """
 
 from pathlib import Path

@@ -20,6 +20,7 @@ from ecam.mechanics import Mechanics
 from ecam.validate import choice, fail, integer, number, plain, positive
 from hil_sim.feedback import Encoder, IdealFeedback
 from hil_sim.filters import Notch
+from hil_sim.int32 import wrap_int32
 from hil_sim.plant import MechanicalEffects, Plant, choose_model
 
 #: Plant models a :class:`ServoAxis` (and a scene's ``drive.model``) can ask for.
@@ -327,55 +328,56 @@ class ServoAxis:
         velocity_offset_counts_per_s : float
             Velocity offset (0x60B1) [counts/s]: the target speed at the target's time.
         """
-        target_counts = _counts("target_counts", target_counts)
-        offset = number("velocity_offset_counts_per_s", plain(velocity_offset_counts_per_s))
-        step_counts = (target_counts - self._target_raw + 2**31) % 2**32 - 2**31
+        if type(target_counts) is not int:  # the common case (a Python int) is checked at once
+            target_counts = _counts("target_counts", target_counts)
+        offset = velocity_offset_counts_per_s
+        if type(offset) not in (int, float) or not math.isfinite(offset):
+            offset = number("velocity_offset_counts_per_s", plain(offset))
+        step_counts = wrap_int32(target_counts - self._target_raw)  # an INTEGER32 that wraps
         start_counts = self._target
         self._target_raw = target_counts
         self._target = start_counts + step_counts
 
         cpr = self.counts_per_motor_rad
         t_cycle = self.cycle_s
-        start_rad = start_counts / cpr
         step_rad = step_counts / cpr
         offset_start, offset_end = self._offset, offset / cpr
         self._offset = offset_end
-        # The reference over the cycle as a polynomial in the elapsed time s:
-        #   theta_ref = c0 + c1 s + c2 s^2 + c3 s^3, plus (target mode) the ramp of the offset.
+        # The cycle's references as polynomials in the time s since the SYNC: the position
+        # theta_ref = start + slope s (linear interpolation of the targets, CiA 402 0x60C0 = 0),
+        # the speed fed forward, and the acceleration fed forward.
+        slope = step_rad / t_cycle
         if self.feedforward == "offset":
-            # Linear interpolation of the targets; the speed from the velocity offsets, ramped
-            # between the last two, and the acceleration as their difference over the cycle:
-            # no difference of integer targets, so nothing that grows with the cycle rate.
-            c0, c1, c2, c3 = start_rad, 0.0, 0.0, 0.0
-            reference_slope = step_rad / t_cycle
-            ramp_start = ramp_slope = 0.0
+            # The speed from the velocity offsets, ramped between the last two, the acceleration
+            # as their difference over the cycle: no difference of integer targets, so nothing
+            # that grows with the cycle rate or with SYNC jitter.
             acceleration = (offset_end - offset_start) / t_cycle
-            ff_speed0, ff_speed1, ff_speed2 = offset_start, acceleration, 0.0
-            ff_acc0, ff_acc1 = acceleration, 0.0
+            speed = (offset_start, acceleration)
+            extra = (0.0, 0.0)
         else:
-            # Linear interpolation; feed-forward from the parabola through the last three
-            # targets (smooth within the cycle, unlike the line's impulses at each SYNC).
-            slope = step_rad / t_cycle
+            # Feed-forward from the parabola through the last three targets (smooth within the
+            # cycle, unlike the line's impulses at each SYNC), its acceleration low-passed; a
+            # velocity offset, if any, ramped and added to the speed command.
             previous_slope, self._reference_speed = self._reference_speed, slope
             raw_acceleration = (slope - previous_slope) / t_cycle
             self._acceleration += self._acceleration_filter * (raw_acceleration
                                                                - self._acceleration)
-            c0, c1, c2, c3 = start_rad, 0.0, 0.0, 0.0
-            reference_slope = slope
-            ramp_start, ramp_slope = offset_start, (offset_end - offset_start) / t_cycle
-            ff_speed0, ff_speed1, ff_speed2 = 0.5 * (slope + previous_slope), self._acceleration, 0.0
-            ff_acc0, ff_acc1 = self._acceleration, 0.0
-        self._run(c0, c1, c2, c3, reference_slope, ramp_start, ramp_slope,
-                  ff_speed0, ff_speed1, ff_speed2, ff_acc0, ff_acc1)
+            acceleration = self._acceleration
+            speed = (0.5 * (slope + previous_slope), acceleration)
+            extra = (offset_start, (offset_end - offset_start) / t_cycle)
+        gains = self.gains
+        vff, aff = gains.velocity_feedforward, gains.acceleration_feedforward
+        speed_command = (vff * speed[0] + extra[0], vff * speed[1] + extra[1])
+        torque_ff = (aff * (self._j_eq * acceleration + self._b_eq * speed[0]),
+                     aff * self._b_eq * speed[1])
+        self._run(start_counts / cpr, slope, speed_command, torque_ff)
         self._cycles += 1
 
-    def _run(self, c0, c1, c2, c3, reference_slope, ramp_start, ramp_slope,
-             ff_speed0, ff_speed1, ff_speed2, ff_acc0, ff_acc1) -> None:
-        """The controller periods of one cycle (the hot loop: everything looked up once)."""
+    def _run(self, start: float, slope: float, speed_command: tuple, torque_ff: tuple) -> None:
+        """The controller periods of one cycle (the hot loop: everything looked up once).
+        ``speed_command`` and ``torque_ff`` are (value at the SYNC, slope) of the feed-forward."""
         gains = self.gains
         kp, kv, ki = gains.position_kp, gains.velocity_kp, gains.velocity_ki
-        vff, aff = gains.velocity_feedforward, gains.acceleration_feedforward
-        j_eq, b_eq = self._j_eq, self._b_eq
         limit = self._torque_limit
         catch_up = 2.0 * self._catch_up_acceleration
         limited = math.isfinite(limit)
@@ -388,32 +390,35 @@ class ServoAxis:
         integral = self._integral
         angle, speed = self._measured
         dt = self.dt
+        v0, v1 = speed_command
+        t0, t1 = torque_ff
         peak_torque = peak_coupling = peak_twist = 0.0
         saturated = False
         for i in range(self.substeps):
             s = i * dt
             # Sampled at the start of the controller period, whose torque the plant then holds.
-            reference = c0 + s * (reference_slope + c1 + s * (c2 + s * c3))
-            speed_ff = ff_speed0 + s * (ff_speed1 + s * ff_speed2)
-            position_error = reference - angle
+            position_error = start + slope * s - angle
             correction = kp * position_error
             # Square-root law: never ask for more speed than can be braked to zero within
             # the remaining error, or a torque-limited axis overshoots into a limit cycle.
-            if limited:
-                brake_speed = math.sqrt(catch_up * abs(position_error))
-                if abs(correction) > brake_speed:
-                    correction = math.copysign(brake_speed, position_error)
-            speed_error = correction + vff * speed_ff + ramp_start + ramp_slope * s - speed
-            torque_ff = aff * (j_eq * (ff_acc0 + ff_acc1 * s) + b_eq * speed_ff)
-            wanted = kv * speed_error + ki * integral + torque_ff
+            if limited and correction * correction > catch_up * abs(position_error):
+                correction = math.copysign(math.sqrt(catch_up * abs(position_error)),
+                                           position_error)
+            speed_error = correction + v0 + v1 * s - speed
+            wanted = kv * speed_error + ki * integral + t0 + t1 * s
             if notch is not None:
                 wanted = notch(wanted)
-            torque = min(max(wanted, -limit), limit)
-            clamped = torque != wanted
+            if wanted > limit:
+                torque, clamped = limit, True
+            elif wanted < -limit:
+                torque, clamped = -limit, True
+            else:
+                torque, clamped = wanted, False
             # Anti-windup: while clamped, integrate only errors that pull out of the limit.
             if not clamped or (speed_error > 0.0) != (wanted > 0.0):
                 integral += speed_error * dt
-            saturated = saturated or clamped
+            if clamped:
+                saturated = True
             if delay:
                 pending, torque = torque, pending
             angle, speed, coupling, twist = advance(torque)

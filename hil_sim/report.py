@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
-from ecam.export import plain
+from ecam.export import json_safe
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,16 @@ class Check:
         return None if ratio is None else 1.0 - ratio
 
     def to_dict(self) -> dict:
+        """The check as the JSON object of ``ecam sim --json``'s ``checks`` list.
+
+        Returns
+        -------
+        dict
+            ``name``, ``value``, ``limit``, ``passed``, ``unit``, ``ratio``, ``margin``,
+            ``detail``, and ``window`` when the check looked at part of the samples. Floats are
+            cut to 10 significant digits (the same JSON wherever their last bits differ); a value
+            that is not finite or not known is None (JSON ``null``).
+        """
         out = {"name": self.name, "value": _clean(self.value), "limit": _clean(self.limit),
                "passed": self.passed, "unit": self.unit, "ratio": _clean(self.ratio),
                "margin": _clean(self.margin), "detail": self.detail}
@@ -195,20 +205,22 @@ class Report:
             t = self.timing
             lines.append(f"time: {t.get('simulated_s', 0):.4g} s simulated in "
                          f"{t.get('wall_s', 0):.3g} s wall, real-time factor "
-                         f"{t.get('real_time_factor', 0):.3g}x (loop {t.get('loop_s', 0):.3g} s: "
+                         f"{t.get('real_time_factor', 0):.3g}x (effects measured "
+                         f"{t.get('effects_s', 0):.3g} s; loop {t.get('loop_s', 0):.3g} s: "
                          f"servo/plant {t.get('axis_s', 0):.3g} s, bus+CANopen "
-                         f"{t.get('protocol_s', 0):.3g} s; setup {t.get('setup_s', 0):.3g} s, "
+                         f"{t.get('protocol_s', 0):.3g} s, {t.get('loop_real_time_factor', 0):.3g}x "
+                         f"real time; setup {t.get('setup_s', 0):.3g} s, "
                          f"analysis {t.get('analysis_s', 0):.3g} s)")
         return "\n".join(lines) + "\n"
 
 
 def _clean(value):
-    """JSON-ready copy (:func:`ecam.export.plain`: numpy scalars to Python, NaN to None) with
+    """JSON-ready copy (:func:`ecam.export.json_safe`: numpy scalars to Python, NaN to None) with
     floats cut to 10 significant digits and keys made strings, so the JSON is the same bytes
     wherever the last bits of a float differ."""
     if isinstance(value, dict):
         return {str(k): _clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_clean(v) for v in value]
-    value = plain(value)
+    value = json_safe(value)
     return float(f"{value:.10g}") if isinstance(value, float) else value

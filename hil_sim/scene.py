@@ -56,7 +56,7 @@ Layout (units in the names or below; SI unless said otherwise)::
 
     [bus]
     bitrate = 1000000
-    [bus.faults]                       # optional, see hil_sim.bus.Faults
+    [bus.faults]                       # optional, see hil_sim.faults.Faults
     seed = 1
     drop_probability = 0.01
 
@@ -80,6 +80,7 @@ Layout (units in the names or below; SI unless said otherwise)::
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -89,9 +90,10 @@ from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
 from ecam.validate import Fields, choice, fail, show
-from hil_sim.bus import FRAME_KINDS, Faults
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
+from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
+from hil_sim.faults import FRAME_KINDS, Faults
 
 #: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
@@ -229,7 +231,7 @@ class MechanicsSpec:
 
 @dataclass(frozen=True)
 class BusSpec:
-    """Bitrate and faults (:class:`hil_sim.bus.Faults`)."""
+    """Bitrate and faults (:class:`hil_sim.faults.Faults`)."""
 
     bitrate: int = 1_000_000
     faults: object = None
@@ -282,7 +284,7 @@ class Scene:
         Motor, gear, coupling and load (:meth:`MechanicsSpec.build` gives the
         :class:`~ecam.mechanics.Mechanics`), and slave units per load radian.
     bus : BusSpec
-        Bitrate [bit/s] and faults (:class:`hil_sim.bus.Faults`).
+        Bitrate [bit/s] and faults (:class:`hil_sim.faults.Faults`).
     limits : LimitsSpec
         Limits of the report's checks.
     duration : DurationSpec
@@ -342,8 +344,10 @@ def load_scene(path, cam: CamProfile | None = None) -> Scene:
         the field, the value and what was expected (``scene x.toml: drive.substeps: 0 should
         be an integer in 1..1000``).
     InputError
-        ``cam`` is not an :class:`ecam.CamProfile`.
+        ``path`` is not a path, or ``cam`` is not an :class:`ecam.CamProfile`.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise fail("path", path, "a scene file path (str or Path)")
     path = Path(path)
     data = read_toml(path, "scene file")
     return parse_scene(data, base=path.parent, source=path.name, path=path.resolve(), cam=cam)
@@ -509,27 +513,6 @@ def _drive_effects(raw: Fields) -> tuple:
     if "computation_delay" in raw:
         out.append(("computation_delay", raw.boolean("computation_delay")))
     return tuple(out)
-
-
-def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
-    """The bus cycle as CiA 402 object 0x60C2 (interpolation time period) holds it.
-
-    Parameters
-    ----------
-    cycle_s : float
-        The cycle [s].
-
-    Returns
-    -------
-    tuple of (int, int) or None
-        ``(value, index)`` with ``value x 10^index == cycle_s``, value in 1..255 (UNSIGNED8)
-        and index in -6..0; None when the cycle has no such form (e.g. 1/3 ms).
-    """
-    for index in range(-6, 1):
-        value = cycle_s / 10.0**index
-        if 1 <= round(value) <= 255 and math.isclose(value, round(value), rel_tol=1e-9):
-            return round(value), index
-    return None
 
 
 def _mechanics(top: Fields) -> MechanicsSpec:

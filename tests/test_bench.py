@@ -50,7 +50,7 @@ def _tables(rows):
 def test_quick_json_is_a_list_of_rows_with_the_contract_fields(quick_run):
     rows, _ = quick_run
     assert isinstance(rows, list) and rows
-    assert all(isinstance(r, dict) and r.get("kind") in {"table", "target", "rig", "note"} for r in rows)
+    assert all(isinstance(r, dict) and r.get("kind") in {"table", "target", "rig", "rig_search", "note"} for r in rows)
     assert all(field in r for r in rows for field in bench.CONTRACT_KEYS)  # every row: consumers never break
     kinds = [r["kind"] for r in rows]
     assert kinds == sorted(kinds, key=lambda k: k != "table")  # table rows first
@@ -108,6 +108,7 @@ def test_targets_and_rig_rows_are_reported(quick_run):
     assert set(targets) == {
         "python_linear_vs_numpy_interp", "python_cubic_vs_numpy_interp", "python_quintic_vs_numpy_interp",
         "c_cubic_vs_c_linear", "auto_bytes_vs_linear_at_1e-6", "rig_real_time_factor_1khz",
+        "rig_fast_path_real_time_factor_1khz",
     }
     for t in targets.values():
         assert t["relation"] in ("<=", ">=") and t["limit"] > 0 and t["verdict"]
@@ -121,6 +122,10 @@ def test_targets_and_rig_rows_are_reported(quick_run):
         assert r["available"] is True, r.get("reason")
         assert r["real_time_factor"] > 0 and r["cycles"] > 0
         assert set(r["cost_us_per_cycle"]) == {"lookup", "canopen", "drive_loop", "plant"}
+        assert r["fast_real_time_factor"] > r["loop_real_time_factor"] > 0  # bus-free is faster
+        assert r["fidelity_runs"] >= 2 and r["effects_s"] > 0
+    search = [r for r in rows if r["kind"] == "rig_search"]
+    assert len(search) == 1 and search[0]["speed"] > 0 and search[0]["trials_canopen"] >= 1
     text = bench.format_text(rows)
     assert "targets (shown, not asserted)" in text and "cycloidal" in text
 

@@ -49,7 +49,7 @@ def cli(tmp_path_factory) -> Path:
         pytest.skip("no C compiler (cc/gcc/clang) on PATH")
     out = tmp_path_factory.mktemp("parity") / "ecam_cli"
     cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(FIRMWARE), "-o", str(out),
-           str(FIRMWARE / "ecam_cli.c"), str(FIRMWARE / "ecam_table.c")]  # fmt: skip
+           str(FIRMWARE / "ecam_cli.c"), str(FIRMWARE / "ecam_host_io.c"), str(FIRMWARE / "ecam_table.c")]  # fmt: skip
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return out

@@ -31,7 +31,7 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "firmware_tables"
 RUNTIME = [FIRMWARE / "ecam_table.c"]
-CLI_SOURCES = [FIRMWARE / "ecam_cli.c", FIRMWARE / "ecam_table.c"]
+CLI_SOURCES = [FIRMWARE / "ecam_cli.c", FIRMWARE / "ecam_host_io.c", FIRMWARE / "ecam_table.c"]
 STRICT_FLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 SANITIZE_FLAGS = [
     "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1", "-g", "-fno-omit-frame-pointer",
@@ -877,7 +877,7 @@ def test_runtime_compiles_without_warnings(build_dir, path, opt, compiler):
     cc = _compiler() if compiler == "cc" else shutil.which(compiler)
     if cc is None:
         pytest.skip(f"{compiler} not found (Debian: apt-get install {'gcc' if compiler == 'cc' else compiler})")
-    for source in ("ecam_table.c", "ecam_minimal.c", "ecam_target.c"):
+    for source in ("ecam_table.c", "ecam_minimal.c", "ecam_target.c", "ecam_host_io.c"):
         cmd = [cc, *RUNTIME_WARNINGS, opt, *ARITHMETIC_PATHS[path], "-c", "-o", str(build_dir / "w.o"),
                str(FIRMWARE / source)]  # fmt: skip
         proc = subprocess.run(cmd, capture_output=True, text=True)

@@ -161,6 +161,79 @@ def test_inconsistent_blob_with_valid_crcs_is_rejected(drrd):
         CamTable.from_bytes(bytes(blob))
 
 
+def test_the_certificate_holds_python_numbers(drrd):
+    """The compiler works in numpy; the certificate it hands out holds Python floats and ints
+    (plain repr, plain equality), with the same values."""
+    import dataclasses
+
+    for settings in (dict(interp="linear", points=129), dict(interp="cubic", tolerance="2 counts")):
+        table = compile_table(drrd, master_counts=2**16, **settings)  # (the first one held numpy scalars)
+        certificate = table.certificate
+        for part in (certificate, certificate.measurement):
+            for field in dataclasses.fields(part):
+                value = getattr(part, field.name)
+                if field.name in ("measurement", "joints_off_points") or value is None or isinstance(value, str):
+                    continue
+                assert type(value) in (float, int), (settings, field.name, type(value))
+                assert (type(value) is float) == ("float" in str(field.type)), field.name
+        assert all(type(x) is float for x in certificate.joints_off_points)
+        assert "np." not in repr(certificate) and "numpy" not in repr(certificate)
+        again = ecam.Certificate(**{f.name: getattr(certificate, f.name) for f in dataclasses.fields(certificate)})
+        assert again == certificate and again.report(table) == table.report
+
+
+# Where each TableFormat field sits in the blob header (FORMAT.md), as struct codes.
+HEADER_FIELDS = {
+    "degree": (8, "B"), "step_shift": (10, "b"), "tau_bits": (11, "B"), "work_bits": (12, "B"),
+    "slope_bits": (13, "B"), "curvature_bits": (14, "B"), "slope_preshift": (15, "B"), "points": (16, "I"),
+    "master_counts": (20, "I"), "step_counts": (24, "I"), "position_bits": (28, "B"), "tau_recip": (32, "Q"),
+}
+
+
+def test_the_format_and_the_loader_state_each_field_rule_once(drrd):
+    """TableFormat.validate and the loader take their rules from one table (ecam.table.FIELD_RULES):
+    a header field changed in a blob (CRCs fixed) and the same field changed in the format are
+    refused by the same rule, with the same words and the same C status."""
+    import dataclasses
+    import struct
+
+    from ecam.table import FIELD_RULES
+
+    seen = set()
+    format_rules = {rule.status for rule in FIELD_RULES if not rule.blob_only}
+    periodic = CamProfile.from_segments([Segment.from_span(240.0, 45.0, "modified_sine"), Segment.from_span(120.0)],
+                                        net_stroke=45.0)
+    tables = [compile_table(drrd, interp=interp, points=points, master_counts=counts)
+              for interp, points, counts in [("linear", 9, 2**12), ("cubic", 19, 36000), ("quintic", 65, 2**16)]]
+    tables.append(compile_table(periodic, interp="cubic", points=25, master_counts=36000))
+    for table in tables:
+        blob, f = table.to_bytes(), table.format
+        changes = [(name, offset, code, value) for name, (offset, code) in HEADER_FIELDS.items()
+                   for value in {0, 1, 2, 7, 30, 31, 41, 64, 127, getattr(f, name) - 1, getattr(f, name) + 1}
+                   if 0 <= value < 2 ** (8 * struct.calcsize(code) - (code == "b"))]
+        changes += [("net", 48, "qI", value) for value in [(45000, 2), (f.net_stroke_num, 0), (2**40, 1)]]
+        for name, offset, code, value in changes:
+            header = bytearray(blob[:64])
+            struct.pack_into("<" + code, header, offset, *(value if name == "net" else (value,)))
+            if name == "net":
+                struct.pack_into("<H", header, 4, 2)  # version 2 stores the net stroke
+            struct.pack_into("<I", header, 60, zlib.crc32(bytes(header[:60])))
+            try:
+                CamTable.from_bytes(bytes(header) + blob[64:])
+            except TableFormatError as exc:
+                loader = exc
+            else:
+                continue
+            if loader.status not in format_rules:
+                continue  # a rule about the blob's own bytes (payload size), or the overflow proof
+            fields = dict(net_stroke_num=value[0], net_stroke_den=value[1]) if name == "net" else {name: value}
+            with pytest.raises(TableFormatError) as info:
+                dataclasses.replace(f, **fields).validate()
+            assert (info.value.status, f"blob {info.value} ({info.value.status})") == (loader.status, str(loader))
+            seen.add(loader.status)
+    assert seen == format_rules
+
+
 def test_non_power_of_two_steps_use_the_reciprocal(drrd):
     table = compile_table(drrd, interp="cubic", points=361, master_counts=36000, slave_counts_per_unit=1e5)
     assert table.format.step_shift == -1 and table.format.step_counts == 100

@@ -83,3 +83,25 @@ def test_a_bus_that_fails_while_the_drive_runs_is_one_line_and_exit_2(monkeypatc
     assert err.count("\n") == 1
     assert err.startswith("ecam: error: interface 'socketcan' channel 'ecam' failed while the drive "
                           "ran: the interface went down")
+
+
+def test_the_interface_choices_are_the_drive_commands_table():
+    """`--interface` takes what drive_command can open (one table), and reading that table
+    loads no CAN stack, so `ecam laws` still starts without python-can."""
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    cli.add_drive_arguments(parser)  # as `ecam drive` and `hil-sim drive` both build theirs
+    choices = next(a.choices for a in parser._actions if "--interface" in a.option_strings)
+    assert tuple(choices) == drive_command.INTERFACES == tuple(drive_command.DEFAULT_CHANNELS)
+    assert set(drive_command._REACH) == set(drive_command.INTERFACES)
+    from hil_sim.udp_bus import DEFAULT_GROUP
+
+    for interface in ("udp_multicast", "ecam_udp"):  # python-can's group, looked up when opened
+        assert drive_command.DEFAULT_CHANNELS[interface] is None
+    assert drive_command.open_drive_bus("virtual", None) == (None, "ecam")
+    code = ("import sys, ecam.app.cli; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('can', 'canopen')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    assert DEFAULT_GROUP == "239.74.163.2"  # what `--channel`'s help names as the default

@@ -213,7 +213,7 @@ RPDO_MAPPINGS = [
 #: Live objects whose values come from arithmetic (the cam, the axis): each must still fit its
 #: data type (a 0x60B1 that left INTEGER32 made its upload abort and the next reset raise, issue 14).
 COMPUTED_OBJECTS = [0x6041, 0x6061, 0x6064, 0x606C, 0x6077, 0x607A, 0x60B1, 0x60F4, 0x603F, 0x1001]
-#: Statusword bits 0..6 name the CiA 402 state (cia402.STATUSWORD); the drive may add these.
+#: Statusword bits 0..6 name the CiA 402 state (cia402.STATUSWORD_OF_STATE); the drive may add these.
 STATE_BITS = 0x007F
 EXTRA_BITS = cia402.SW_REMOTE | cia402.SW_FOLLOWING_COMMAND | cia402.SW_FOLLOWING_ERROR
 #: INTEGER32 values at and near the edges, and jumps a master may make in one cycle.
@@ -321,7 +321,7 @@ def test_fuzz_rpdo_sync_and_nmt_frames(session, caplog):
                 if state == cia402.OPERATION_ENABLED:
                     counts["csp cycles"] += 1
                     counts["cam cycles"] += session.drive.cam.drives_the_target
-            assert session.drive.state in cia402.STATUSWORD
+            assert session.drive.state in cia402.STATUSWORD_OF_STATE
             for key, obj in computed:  # each value still packs into its data type
                 obj.encode_raw(values[key])
         if session.drive.nmt_state != cia402.STOPPED:
@@ -330,7 +330,7 @@ def test_fuzz_rpdo_sync_and_nmt_frames(session, caplog):
     assert not [r for r in caplog.records if r.levelno >= logging.ERROR], caplog.text
     assert session.drive.defects == 0
     # Every TPDO1 the drive sent has a statusword naming a state, and the fuzz reached them all.
-    states = {word: name for name, word in cia402.STATUSWORD.items()}
+    states = {word: name for name, word in cia402.STATUSWORD_OF_STATE.items()}
     seen = set()
     for can_id, data, _ in session.frames:
         if can_id == 0x181:

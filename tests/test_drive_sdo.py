@@ -275,6 +275,27 @@ def test_the_interpolation_period_is_refused_outside_10_us_to_1_s(sdo):
     assert sdo.drive.cycle_s == pytest.approx(1e-5)
 
 
+def test_the_0x60C2_encoding_round_trips():
+    """The rig's encoder and the drive's decoder of 0x60C2 (value x 10^index s) invert each
+    other: every (value 1..255, index -6..0) decodes to a period that encodes to the finest
+    index that holds it, which decodes to the same float."""
+    from hil_sim.drive.objects import interpolation_period, interpolation_period_s
+
+    for index in range(-6, 1):
+        for value in range(1, 256):
+            period = interpolation_period_s(value, index)
+            encoded = interpolation_period(period)
+            assert encoded is not None, (value, index)
+            again, finest = encoded
+            assert interpolation_period_s(again, finest) == period, (value, index, encoded)
+            assert again * 10.0**finest == pytest.approx(value * 10.0**index, rel=1e-12)
+            assert 1 <= again <= 255 and (finest == -6 or 10 * again > 255), (value, index, encoded)
+    assert interpolation_period(1e-3) == (100, -5)
+    assert interpolation_period(0.25) == (250, -3)
+    assert interpolation_period(1 / 3000) is None  # 333.3... us has no decimal form
+    assert interpolation_period(256.0) is None  # past 255 x 10^0 s
+
+
 # ---------------------------------------------------------------------------------------------
 # Fuzz: random and near-valid frames, bounded and seeded
 
@@ -352,7 +373,7 @@ def test_fuzz_the_sdo_server(sdo, table, caplog):
     assert sdo.node.sdo[0x1000].raw == 0x00020192
     assert sdo.node.sdo[0x2002].raw == table.crc32  # the running table never changed
     assert sdo.drive.active_table.to_bytes() == blob
-    assert sdo.drive.state in cia402.STATUSWORD
+    assert sdo.drive.state in cia402.STATUSWORD_OF_STATE
     # Every abort class of the server was reached (the fuzz is not stuck on one).
     assert {drv.ABORT_COMMAND_SPECIFIER, drv.ABORT_TOGGLE, drv.ABORT_TIMEOUT, 0x06020000,
             0x06090011, 0x06070012, 0x06070013, 0x06010002} <= codes, sorted(hex(c) for c in codes)

@@ -21,6 +21,8 @@ import time
 import canopen
 import pytest
 
+import ecam
+
 from hil_sim.bus import open_virtual_bus
 from hil_sim.drive import EDS_PATH, VirtualDrive, cia402
 from hil_sim.rig import LockstepMaster
@@ -113,6 +115,16 @@ def free():
     rig.close()
 
 
+def test_starting_a_running_drive_is_a_simulation_error(free):
+    with pytest.raises(ecam.SimulationError, match="^the drive is already running"):
+        free.drive.start()
+    assert free.drive.runner.thread.is_alive()  # the running drive is left as it was
+    free.node.nmt.state = "OPERATIONAL"
+    cycles = free.drive.cycles
+    free.syncs(3)
+    assert free.wait_for(lambda: free.drive.cycles == cycles + 3)
+
+
 def test_free_running_time_advances_one_interpolation_period_per_sync(free):
     # An external master: heartbeats follow the wall clock, the control loop the SYNC.
     free.node.sdo[0x60C2][1].raw = 4  # 4 ms, not the SYNC spacing the master happens to use
@@ -143,7 +155,7 @@ def test_a_lost_sync_gets_the_reaction_0x6007_configures(free, option, state, em
     assert free.wait_for(lambda: free.drive.sync_losses == 1)
     assert free.wait_for(lambda: free.drive.state == state), free.drive.state
     statusword = free.node.sdo[0x6041].raw
-    assert statusword & 0x6F == cia402.STATUSWORD[state] & 0x6F, hex(statusword)
+    assert statusword & 0x6F == cia402.STATUSWORD_OF_STATE[state] & 0x6F, hex(statusword)
     if emcy:
         assert free.wait_for(lambda: EMCY_COMMUNICATION in free.emcy_codes())
         assert free.node.sdo[0x603F].raw == EMCY_COMMUNICATION

@@ -32,10 +32,43 @@ def test_the_old_exporters_are_still_importable_from_ecam_export():
     from ecam import export
     from ecam.export import EXPORTERS, identifier
 
-    for name in ("to_c_header", "to_blob", "to_csv", "to_json", "plain", "export_cam", "VENDOR_FORMATS"):
+    for name in ("to_c_header", "to_blob", "to_csv", "to_json", "json_safe", "export_cam", "VENDOR_FORMATS"):
         assert callable(getattr(export, name)) or isinstance(getattr(export, name), dict)
     assert set(EXPORTERS) == {"c", "bin", "csv", "json"}
     assert identifier("9 lives") == "cam_9_lives"
+
+
+def test_the_vendor_certificate_does_not_shadow_the_tables(drrd):
+    """ecam.Certificate certifies ecam's own table; the vendor one is ExportCertificate, and a
+    star import of ecam.export after ecam's keeps ecam's."""
+    from ecam import export
+
+    assert export.ExportCertificate is not ecam.Certificate
+    assert "ExportCertificate" in export.__all__ and "Certificate" not in export.__all__
+    assert export.Certificate is export.ExportCertificate  # the deprecated alias still imports
+    names: dict = {}
+    exec("from ecam import *\nfrom ecam.export import *", names)
+    assert names["Certificate"] is ecam.Certificate
+    assert isinstance(export_cam(drrd, "csv", points=37).certificate, export.ExportCertificate)
+
+
+def test_the_vendor_path_reads_the_counts_through_table_spec(drrd):
+    """The counts a vendor export uses are the TableSpec's: same defaults from the cam file's
+    [table], same limits, same messages."""
+    from ecam.export.certify import Cam
+
+    cam, spec = Cam(drrd), ecam.TableSpec.resolve(drrd.table, points=3)
+    assert (cam.master_counts, cam.scale) == (spec.master_counts, spec.slave_counts_per_unit)
+    given = Cam(drrd, master_counts=np.int64(7200), slave_counts_per_unit=250)
+    assert (given.master_counts, given.scale) == (7200, 250.0) and type(given.master_counts) is int
+    for counts, message in [(dict(master_counts=1), "master_counts: 1 should be an integer in 2..2147483648"),
+                            (dict(master_counts=2.5), "master_counts: 2.5 should be an integer"),
+                            (dict(slave_counts_per_unit=1e13), "slave_counts_per_unit: 1e+13 should be <= 1e+12")]:
+        with pytest.raises(InputError) as vendor:
+            export_cam(drrd, "csv", points=10, **counts)
+        with pytest.raises(InputError) as own:
+            ecam.TableSpec(points=3, **counts)
+        assert str(vendor.value) == str(own.value) == message
 
 
 # Equidistant straight lines on at most 360 entries cannot reach 5 counts on this cam (12.3 at best).

@@ -201,7 +201,7 @@ def test_power_state_machine_follows_the_controlword(rig):
         rig.node.sdo[0x6040].raw = controlword
         assert rig.drive.state == state, hex(controlword)
         statusword = rig.node.sdo[0x6041].raw
-        assert statusword == cia402.STATUSWORD[state] | cia402.SW_REMOTE, (hex(controlword), hex(statusword))
+        assert statusword == cia402.STATUSWORD_OF_STATE[state] | cia402.SW_REMOTE, (hex(controlword), hex(statusword))
 
 
 @given(st.lists(st.sampled_from([0x00, 0x02, 0x06, 0x07, 0x0F, 0x0B, 0x80, 0x8F, 0x86]),
@@ -510,6 +510,28 @@ def test_motor_rated_torque_zero_is_refused_and_the_drive_keeps_running(rig):
 def test_velocity_offset_saturates_at_integer32(value, expected):
     # 0x60B1 is INTEGER32: a velocity beyond it saturates; wrapping would reverse its sign.
     assert drv.saturate_int32(value) == expected
+
+
+@given(st.lists(st.integers(-(2**62), 2**62), min_size=1, max_size=20))
+def test_one_integer32_wrap_and_saturation_for_scalars_and_arrays(values):
+    """hil_sim.int32 serves the drive (scalars), the rig's set points (arrays) and the
+    controller: the two forms agree element by element, and a wrapped position is congruent to
+    the original modulo 2^32 within INTEGER32."""
+    from hil_sim import int32
+
+    assert drv.wrap_int32 is int32.wrap_int32 and drv.saturate_int32 is int32.saturate_int32
+    wrapped = int32.wrap_int32_array(np.array(values, dtype=np.int64))
+    saturated = int32.saturate_int32_array(np.array(values, dtype=np.int64))
+    assert wrapped.dtype == saturated.dtype == np.int64
+    assert wrapped.tolist() == [int32.wrap_int32(v) for v in values]
+    assert saturated.tolist() == [int32.saturate_int32(v) for v in values]
+    for v, w, s in zip(values, wrapped.tolist(), saturated.tolist()):
+        assert -(2**31) <= w < 2**31 and (v - w) % 2**32 == 0
+        assert s == min(max(v, -(2**31)), 2**31 - 1)
+    # the velocities the rig streams are rounded floats: clamped before the cast, even past int64
+    floats = int32.saturate_int32_array(np.array([1e30, -1e30, 2.0**31, -(2.0**31) - 1, 3.0]))
+    assert floats.tolist() == [2**31 - 1, -(2**31), 2**31 - 1, -(2**31), 3]
+    assert int32.wrap_int32(2**31) == -(2**31) and int32.wrap_int32(-(2**31) - 1) == 2**31 - 1
 
 
 def test_re_enabling_after_a_fault_reset_starts_from_the_actual_position(rig):

@@ -323,6 +323,10 @@ def test_find_max_speed_brackets_the_limit():
     assert result["periods_per_minute"] == pytest.approx(60.0 * result["speed"] / 360.0)
     assert len(lines) == len(result["runs"]) and lines[0].startswith("trial 1: ")
     assert all(r["passed"] for r in result["runs"] if abs(r["speed"]) <= result["speed"])
+    # the scene at the found speed passes over CANopen, and 5 % above it fails
+    from hil_sim.rig.search import trial_scene
+    assert run_scene(trial_scene(scene("stiff_coupling"), result["speed"])).passed
+    assert not run_scene(trial_scene(scene("stiff_coupling"), 1.05 * result["speed"])).passed
 
 
 def test_find_max_speed_of_a_scene_that_fails_at_any_speed_stops():
@@ -417,4 +421,4 @@ def test_drive_node_id_zero_is_refused():
 
     run = subprocess.run([sys.executable, "-m", "ecam.app", "drive", "--node-id", "0"], capture_output=True,
                          text=True, timeout=60)
-    assert run.returncode == 2 and "node_id 0 should be" in run.stderr
+    assert run.returncode == 2 and "node_id: 0 should be an integer in 1..127" in run.stderr

@@ -149,6 +149,20 @@ def test_importing_hil_sim_loads_no_can_stack_until_a_rig_name_is_used():
     assert {"can", "canopen"} <= set(loaded), "the check above would not see the CAN stack"
 
 
+def test_reading_a_scene_loads_no_can_stack():
+    # A scene's fault plan and its 0x60C2 cycle are checked without python-can or canopen, so a
+    # job that only validates its scenes stays light: every shipped scene, and one with faults.
+    loaded = _loaded_after(
+        "import tomllib, hil_sim; "
+        "[hil_sim.load_scene(p) for p in sorted(hil_sim.SCENES_DIR.glob('*.toml'))]; "
+        "data = tomllib.loads((hil_sim.SCENES_DIR / 'stiff_coupling.toml').read_text()); "
+        "data['bus']['faults'] = {'seed': 2, 'drop_probability': 0.1, 'drop': [{'cycle': 5, 'frame': 'sync'}]}; "
+        "scene = hil_sim.parse_scene(data, base=hil_sim.SCENES_DIR); "
+        "assert scene.bus.faults.drop == ((5, 'sync'),) and scene.bus.faults.active")
+    assert loaded == []
+    assert {"can", "canopen"} <= set(_loaded_after("import hil_sim.bus")), "the check would not see the CAN stack"
+
+
 def test_the_firmware_generator_loads_no_can_and_no_plotting():
     loaded = _loaded_after("import ecam.app.firmware")
     assert "ecam.app.firmware" in loaded, "the check would not see what the import loaded"
@@ -179,7 +193,7 @@ def test_every_exported_function_class_and_module_has_a_docstring(package):
     assert undocumented == []
 
 
-@pytest.mark.parametrize("package", ["ecam", "hil_sim"])
+@pytest.mark.parametrize("package", EXPORTING)
 def test_every_exported_constant_is_described_in_its_package_docstring(package):
     # A tuple, dict or path cannot carry a docstring of its own: the package's says what it is.
     doc = importlib.import_module(package).__doc__

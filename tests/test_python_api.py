@@ -1,6 +1,7 @@
 """The Python API: the dwell law, segments by span and stroke, profiles written back as cam files,
 and one message shape for every bad value, whoever hands it in."""
 
+import functools
 import math
 import re
 import tomllib
@@ -288,6 +289,16 @@ def test_every_bad_value_is_one_line_of_one_shape(build, message):
     (lambda: ecam.mechanics.peak_torque_check([], 10.0), "torque: [] should be a 1-D series of at least one number"),
     (lambda: ecam.mechanics.residual_vibration(40.0, 0.1, "cycloid"),
      "law: 'cycloid' should be one of " + ", ".join(ecam.LAW_NAMES)),
+    (lambda: _small_table().lookup(np.array([1.5, 2.0])), "master_counts: 1.5 should be integers (int64 counts), "
+                                                          "not float64"),
+    (lambda: _small_table().lookup(2.5), "master_counts: 2.5 should be an integer (int64 counts), not float64"),
+    (lambda: _small_table().lookup(True), "master_counts: True should be an integer (int64 counts)"),
+    (lambda: _small_table().lookup(2**70), "master_counts: 1.18059e+21 should be in -2^63..2^63-1 (int64 counts)"),
+    (lambda: _small_table().lookup([3, 2**70]),
+     "master_counts: 1.18059e+21 should be in -2^63..2^63-1 (int64 counts)"),
+    (lambda: _small_table().lookup([3, "4"]), "master_counts: '3' should be integers (int64 counts), not <U21"),
+    (lambda: _small_table().lookup(np.array([2**64 - 1], dtype=np.uint64)),
+     "master_counts: 1.84467e+19 should be in -2^63..2^63-1 (int64 counts)"),
 ])
 def test_tables_and_mechanics_speak_the_same_shape(build, message):
     with pytest.raises(ecam.InputError) as info:
@@ -295,11 +306,37 @@ def test_tables_and_mechanics_speak_the_same_shape(build, message):
     assert str(info.value) == message and SHAPE.match(message)
 
 
-def test_the_rig_entry_points_speak_the_same_shape():
+@functools.cache
+def _small_table():
+    return ecam.compile_table(ecam.design.modified_sine_cam(50.0), points=65)
+
+
+def _stiff():
     import hil_sim
 
-    with pytest.raises(ecam.InputError, match=r"^cam: 'x' should be an ecam\.CamProfile$"):
-        hil_sim.load_scene(hil_sim.SCENES_DIR / "stiff_coupling.toml", cam="x")
+    return hil_sim.SCENES_DIR / "stiff_coupling.toml"
+
+
+@pytest.mark.parametrize("build, message", [
+    (lambda hil_sim: hil_sim.load_scene(_stiff(), cam="x"), "cam: 'x' should be an ecam.CamProfile"),
+    (lambda hil_sim: hil_sim.load_scene(42), "path: 42 should be a scene file path (str or Path)"),
+    (lambda hil_sim: hil_sim.run_scene(42), "path: 42 should be a scene file path (str or Path)"),
+    (lambda hil_sim: hil_sim.find_max_speed(42), "path: 42 should be a scene file path (str or Path)"),
+    # the arguments are checked before the first trial runs
+    (lambda hil_sim: hil_sim.find_max_speed(_stiff(), tolerance=1), "tolerance: 1 should be < 1 (a share of "
+                                                                    "the passing speed)"),
+    (lambda hil_sim: hil_sim.find_max_speed(_stiff(), tolerance=0.0), "tolerance: 0 should be > 0"),
+    (lambda hil_sim: hil_sim.find_max_speed(_stiff(), max_runs=0), "max_runs: 0 should be an integer in 4..10000"),
+    (lambda hil_sim: hil_sim.find_max_speed(_stiff(), max_runs="x"), "max_runs: 'x' should be an integer"),
+    (lambda hil_sim: hil_sim.VirtualDrive(node_id=0), "node_id: 0 should be an integer in 1..127"),
+    (lambda hil_sim: hil_sim.VirtualDrive(node_id=True), "node_id: True should be an integer"),
+])
+def test_the_rig_entry_points_speak_the_same_shape(build, message):
+    import hil_sim
+
+    with pytest.raises(ecam.InputError) as info:
+        build(hil_sim)
+    assert str(info.value) == message and SHAPE.match(message)
 
 
 def test_a_cam_file_error_names_the_file_and_its_own_field():

@@ -16,6 +16,7 @@ from ecam.table import INTERPOLATIONS
 from hil_sim.effects import FIDELITIES
 
 from . import cam_commands
+from .drive_command import INTERFACES
 
 EXIT_BAD_INPUT = 2
 
@@ -88,8 +89,7 @@ def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
                              "[239.74.163.2] or a SocketCAN interface [vcan0]")
     parser.add_argument("--node-id", type=int, default=None,
                         help="CANopen node id 1..127 [1, or the scene's]")
-    parser.add_argument("--interface", default="udp_multicast",
-                        choices=("udp_multicast", "ecam_udp", "socketcan", "virtual"),
+    parser.add_argument("--interface", default=INTERFACES[0], choices=INTERFACES,
                         help="udp_multicast (= ecam_udp, without echoes) or socketcan: masters "
                              "in other processes; virtual: masters in this process only "
                              "[udp_multicast]")

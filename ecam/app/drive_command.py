@@ -15,19 +15,20 @@ import argparse
 import signal
 import threading
 
-import can
-
 from ecam.errors import EcamError
-from hil_sim.drive import VirtualDrive
-from hil_sim.rig import drive_for_scene
-from hil_sim.udp_bus import DEFAULT_GROUP, EchoFreeUdpMulticastBus
 
-#: Transports and their default channels. The in-process `virtual` bus reaches only masters in
-#: this process; the others reach other processes. `ecam_udp` is `udp_multicast` without the
-#: sender's own frames (:mod:`hil_sim.udp_bus`); the drive always opens `udp_multicast` that way
-#: (same wire format and groups, so masters on either interface reach it).
-DEFAULT_CHANNELS = {"virtual": "ecam", "udp_multicast": DEFAULT_GROUP, "ecam_udp": DEFAULT_GROUP,
-                    "socketcan": "vcan0"}
+# The CAN stack and the drive are imported in the functions that run the drive: the command line
+# reads the table of transports below (its --interface choices) for every command it parses.
+
+#: Transports and their default channels (None: python-can's IPv4 multicast group,
+#: ``hil_sim.udp_bus.DEFAULT_GROUP``, 239.74.163.2). The in-process `virtual` bus reaches only
+#: masters in this process; the others reach other processes. `ecam_udp` is `udp_multicast`
+#: without the sender's own frames (:mod:`hil_sim.udp_bus`); the drive always opens
+#: `udp_multicast` that way (same wire format and groups, so masters on either interface reach
+#: it). The order is the command line's (its default first).
+DEFAULT_CHANNELS = {"udp_multicast": None, "ecam_udp": None, "socketcan": "vcan0", "virtual": "ecam"}
+#: The transports `ecam drive --interface` takes.
+INTERFACES = tuple(DEFAULT_CHANNELS)
 
 #: What a master needs to reach the drive, by transport (printed when the drive starts).
 _REACH = {
@@ -59,7 +60,11 @@ def open_drive_bus(interface: str, channel: str | None):
     EcamError
         The transport cannot be opened (message names interface, channel and why).
     """
-    channel = channel or DEFAULT_CHANNELS[interface]
+    import can
+
+    from hil_sim.udp_bus import DEFAULT_GROUP, EchoFreeUdpMulticastBus
+
+    channel = channel or DEFAULT_CHANNELS[interface] or DEFAULT_GROUP
     if interface == "virtual":
         return None, channel
     try:
@@ -91,6 +96,11 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     EcamError
         The transport cannot be opened, or its bus failed while the drive ran.
     """
+    import can
+
+    from hil_sim.drive import VirtualDrive
+    from hil_sim.rig import drive_for_scene
+
     bus, channel = open_drive_bus(args.interface, args.channel)
     try:
         if args.scene is not None:

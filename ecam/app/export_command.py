@@ -10,7 +10,7 @@ from pathlib import Path
 from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.errors import InputError
-from ecam.export import export_cam, identifier, plain
+from ecam.export import export_cam, identifier, json_safe
 
 
 def cmd_export(args) -> int:
@@ -27,7 +27,7 @@ def cmd_export(args) -> int:
     if args.json:
         summary = result.summary()
         summary["file"] = str(path)
-        print(json.dumps(plain(summary), indent=1, sort_keys=True))
+        print(json.dumps(json_safe(summary), indent=1, sort_keys=True))
     else:
         print(result.report_text(name))
         print(f"  wrote {path}")

@@ -16,9 +16,11 @@ from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
 from ecam.errors import InputError
-from ecam.export import export_cam, plain, to_c_header, to_json
+from ecam.export import export_cam, json_safe, to_c_header, to_json
+from ecam.table import KINDS
 
-KINDS = ("linear", "cubic", "quintic")
+#: The repository's firmware_tables/: what this module generates, and what the bench builds and
+#: runs the C runtime from (the application's one name for it).
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware_tables"
 VECTOR_SEED = 20261121
 # Vendor exports of every seed cam (format, interpolation), at this share of the cam's stroke.
@@ -89,7 +91,7 @@ def vendor_exports(profile, stem: str) -> dict[str, bytes]:
         certificates.append(summary)
     document = {"cam": stem, "tolerance_units": tolerance, "tolerance_share_of_stroke": EXPORT_TOLERANCE,
                 "exports": certificates}
-    files[f"exports/{stem}.certificates.json"] = (json.dumps(plain(document), indent=1, sort_keys=True)
+    files[f"exports/{stem}.certificates.json"] = (json.dumps(json_safe(document), indent=1, sort_keys=True)
                                                   + "\n").encode()
     return files
 

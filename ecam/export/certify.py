@@ -42,16 +42,14 @@ import numpy as np
 from ..errors import InputError, TableFormatError
 from ..linear import inverse_exact, matmul
 from ..profile import CamProfile
-from ..table import MAX_MASTER_COUNTS
-from ..table_spec import (
-    DEFAULT_COUNTS_PER_UNIT, DEFAULT_MASTER_COUNTS, MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance,
-)
-from ..validate import integer, number
+from ..table import divisors
+from ..table_spec import TableSpec, parse_tolerance
+from ..validate import integer
 
 __all__ = [
-    "EXPORT_VERSION", "Cam", "Hermite", "Reading", "Certificate", "VendorExport", "certify", "predicted",
+    "EXPORT_VERSION", "Cam", "Hermite", "Reading", "ExportCertificate", "VendorExport", "certify", "predicted",
     "greedy_knots", "equidistributed", "spread_knots", "place_local", "fewest", "knot_data", "positional",
-    "divisors", "unreachable",
+    "divisors", "unreachable", "table_counts",
 ]
 
 # max over tau of |f - p| = h^(n+1) max|f^(n+1)| * _SMOOTH[n] for the Hermite polynomial of degree n
@@ -67,6 +65,18 @@ EXPORT_VERSION = 2
 
 
 # -- the cam over one period -------------------------------------------------------------------------
+def table_counts(profile: CamProfile, *, master_counts=None, slave_counts_per_unit=None) -> TableSpec:
+    """The cam's counts, given or from its cam file's ``[table]``, checked by :class:`ecam.TableSpec`
+    exactly as for ecam's own tables (same defaults, limits and messages).
+
+    Only ``master_counts`` and ``slave_counts_per_unit`` of the result mean anything: a vendor
+    export chooses its own size and interpolation, so the spec is resolved with a stand-in one
+    (linear, 2 points) and the cam file's ``interp``, ``points`` and ``tolerance`` are not read.
+    """
+    return TableSpec.resolve(profile.table or {}, interp="linear", points=2, master_counts=master_counts,
+                             slave_counts_per_unit=slave_counts_per_unit)
+
+
 class Cam:
     """A cam profile over one master period ``[0, P]``, unwrapped: at ``P`` it takes the left limit,
     so a net-stroke cam ends at ``y(0) + net stroke``.
@@ -80,14 +90,9 @@ class Cam:
             raise InputError(f"profile: {type(profile).__name__} should be a CamProfile (see ecam.load_cam)")
         self.profile = profile
         self.period = float(profile.master_period)
-        defaults = profile.table or {}
-        self.master_counts = integer(
-            "master_counts", master_counts if master_counts is not None
-            else defaults.get("master_counts", DEFAULT_MASTER_COUNTS), minimum=2, maximum=MAX_MASTER_COUNTS)
-        self.scale = number(
-            "slave_counts_per_unit", slave_counts_per_unit if slave_counts_per_unit is not None
-            else defaults.get("slave_counts_per_unit", DEFAULT_COUNTS_PER_UNIT),
-            minimum=MIN_COUNTS_PER_UNIT, maximum=MAX_COUNTS_PER_UNIT)
+        counts = table_counts(profile, master_counts=master_counts, slave_counts_per_unit=slave_counts_per_unit)
+        self.master_counts = counts.master_counts
+        self.scale = counts.slave_counts_per_unit
         self.jumps = tuple(
             (float(d.master), int(d.order), float(d.jump)) for d in profile.jumps(max_order=5)
             if 0.0 < d.master < self.period
@@ -411,8 +416,11 @@ class Reading:
 
 
 @dataclass(frozen=True)
-class Certificate:
+class ExportCertificate:
     """The error of one export under its consumer's interpolation, in slave user units.
+
+    Not :class:`ecam.Certificate`, which certifies ecam's own fixed-point table under its
+    integer lookup.
 
     ``readings`` holds (name, predicted, measured) for every plausible reading of the consumer's
     documentation; the certificate's bound and measured error are the largest over them, and
@@ -432,13 +440,17 @@ class Certificate:
 
     @property
     def predicted_error_counts(self) -> float:
+        """The predicted bound in slave counts."""
         return self.predicted_error_units * self.slave_counts_per_unit
 
     @property
     def max_error_counts(self) -> float:
+        """The measured error in slave counts."""
         return self.max_error_units * self.slave_counts_per_unit
 
     def to_dict(self) -> dict:
+        """The certificate as the keys of ``ecam export --json`` (errors in units and counts,
+        every reading, the tolerance when one was asked for)."""
         out = {
             "predicted_error_units": self.predicted_error_units,
             "predicted_error_counts": self.predicted_error_counts,
@@ -465,7 +477,7 @@ def predicted(cam: Cam, reading: Reading) -> float:
     return float(interval_bounds(cam, reading.hermite, extra=reading.output_rounding_counts / cam.scale).max())
 
 
-def certify(cam: Cam, readings, tolerance_units: float | None = None) -> Certificate:
+def certify(cam: Cam, readings, tolerance_units: float | None = None) -> ExportCertificate:
     """Predict and measure every reading. The certificate holds the largest bound and the largest
     measured error over the readings (``worst_reading`` is the one measured worst)."""
     rows = []
@@ -486,7 +498,7 @@ def certify(cam: Cam, readings, tolerance_units: float | None = None) -> Certifi
             worst = (reading.name, error, master, interval, how)
     name, error, master, interval, how = worst
     several = len(rows) > 1
-    return Certificate(
+    return ExportCertificate(
         predicted_error_units=max(bound for _, bound, _ in rows), max_error_units=error,
         max_error_at_master=master, max_error_interval=interval, evaluated=how, slave_counts_per_unit=cam.scale,
         slave_unit=cam.profile.slave_unit, master_unit=cam.profile.master_unit,
@@ -709,18 +721,6 @@ def fewest(counts, ok):
     return None
 
 
-def divisors(n: int) -> list[int]:
-    small, large = [], []
-    d = 1
-    while d * d <= n:
-        if n % d == 0:
-            small.append(d)
-            if d * d != n:
-                large.append(n // d)
-        d += 1
-    return small + large[::-1]
-
-
 # -- the export ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class VendorExport:
@@ -738,7 +738,7 @@ class VendorExport:
         The file, ready to write.
     suffix : str
         The usual file name ending.
-    certificate : Certificate
+    certificate : ExportCertificate
     master : ndarray
         Master position of every point, user units.
     notes : tuple of str
@@ -751,7 +751,7 @@ class VendorExport:
     limit: int
     content: str
     suffix: str
-    certificate: Certificate
+    certificate: ExportCertificate
     master: np.ndarray = field(repr=False)
     notes: tuple = ()
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..table import CamTable
 
-__all__ = ["to_c_header", "to_blob", "to_csv", "to_json", "EXPORTERS", "identifier", "plain"]
+__all__ = ["to_c_header", "to_blob", "to_csv", "to_json", "EXPORTERS", "identifier", "json_safe"]
 
 
 def identifier(name: str) -> str:
@@ -145,18 +145,18 @@ def to_json(table: CamTable, name: str = "cam") -> str:
         "positions": [int(v) for v in table.positions],
         "slopes": None if table.slopes is None else [int(v) for v in table.slopes],
         "curvatures": None if table.curvatures is None else [int(v) for v in table.curvatures],
-        "certificate": plain(table.report),
+        "certificate": json_safe(table.report),
     }
     return json.dumps(document, indent=1, sort_keys=True) + "\n"
 
 
-def plain(value):
-    """JSON-safe copy: numpy scalars to Python numbers, non-finite floats to None (JSON has no
-    inf or NaN), tuples to lists."""
+def json_safe(value):
+    """JSON-safe deep copy: numpy scalars to Python numbers, non-finite floats to None (JSON has no
+    inf or NaN), tuples to lists. (:func:`ecam.validate.plain` converts one numpy scalar only.)"""
     if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not math.isfinite(value):

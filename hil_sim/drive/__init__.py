@@ -18,9 +18,10 @@ protocol service:
   does not);
 * :mod:`~hil_sim.drive.emcy`: the EMCY producer and its error codes;
 * :mod:`~hil_sim.drive.power_state`: the **CiA 402 power state machine** run from the tables of
-  :mod:`hil_sim.drive.cia402` (:data:`COMMANDS`, :data:`TRANSITIONS`, :data:`STATUSWORD`), modes of
-  operation 0x6060/0x6061 with cyclic synchronous position (8), following-error monitoring
-  (window 0x6065, time out 0x6066) raising a fault with EMCY 0x8611;
+  :mod:`hil_sim.drive.cia402` (:data:`COMMANDS`, :data:`TRANSITIONS`,
+  :data:`STATUSWORD_OF_STATE`), modes of operation 0x6060/0x6061 with cyclic synchronous
+  position (8), following-error monitoring (window 0x6065, time out 0x6066) raising a fault with
+  EMCY 0x8611;
 * :mod:`~hil_sim.drive.cam_slot`: the **drive-side cam**: a table blob downloaded into 0x2000 is
   verified with :meth:`ecam.CamTable.from_bytes` into a pending slot and activated atomically by
   writing 1 to 0x2001:01; a bad, truncated or aborted download is refused and the running table
@@ -46,30 +47,40 @@ Two ways to run it:
   the wall clock, the control loop still advances one interpolation period per SYNC.
 """
 
-from hil_sim.drive.cam_slot import (
-    CAM_COMMAND_ACTIVATE, CAM_COMMAND_DISCARD, CAM_STATUS_ACTIVE,
-    CAM_STATUS_LAST_DOWNLOAD_REFUSED, CAM_STATUS_PENDING,
-)
-from hil_sim.drive.emcy import (
-    EMCY_COMMUNICATION, EMCY_FOLLOWING_ERROR, EMCY_INTERNAL_SOFTWARE, EMCY_PDO_LENGTH,
-    ERROR_REGISTER_COMMUNICATION, ERROR_REGISTER_GENERIC, ERROR_REGISTER_PROFILE,
-)
-from hil_sim.drive.objects import (
-    EDS_PATH, PROCESS_OBJECTS, interpolation_period_s, load_od, saturate_int32, wrap_int32,
-)
-from hil_sim.drive.sdo import (
-    ABORT_CANNOT_MAP, ABORT_CANNOT_STORE, ABORT_COMMAND_SPECIFIER, ABORT_DEVICE_STATE,
-    ABORT_INVALID_VALUE, ABORT_PDO_LENGTH, ABORT_TIMEOUT, ABORT_TOGGLE, ABORT_VALUE_TOO_HIGH,
-    ABORT_VALUE_TOO_LOW, SDO_TIMEOUT_S,
-)
-from hil_sim.drive.virtual_drive import VirtualDrive
+import importlib
 
-__all__ = [
-    "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_COMMAND_SPECIFIER", "ABORT_DEVICE_STATE",
-    "ABORT_INVALID_VALUE", "ABORT_PDO_LENGTH", "ABORT_TIMEOUT", "ABORT_TOGGLE",
-    "ABORT_VALUE_TOO_HIGH", "ABORT_VALUE_TOO_LOW", "SDO_TIMEOUT_S", "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
-    "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING", "EDS_PATH", "EMCY_COMMUNICATION",
-    "EMCY_FOLLOWING_ERROR", "EMCY_INTERNAL_SOFTWARE", "EMCY_PDO_LENGTH", "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC",
-    "ERROR_REGISTER_PROFILE", "PROCESS_OBJECTS", "VirtualDrive", "interpolation_period_s",
-    "load_od", "saturate_int32", "wrap_int32",
-]
+# Each public name and the module it lives in, imported on first use (PEP 562): the scene reader
+# takes the 0x60C2 encoding from hil_sim.drive.objects, and importing that runs this package,
+# which must therefore not load canopen and python-can by itself.
+_HOMES = {
+    "hil_sim.drive.cam_slot": (
+        "CAM_COMMAND_ACTIVATE", "CAM_COMMAND_DISCARD", "CAM_STATUS_ACTIVE",
+        "CAM_STATUS_LAST_DOWNLOAD_REFUSED", "CAM_STATUS_PENDING",
+    ),
+    "hil_sim.drive.emcy": (
+        "EMCY_COMMUNICATION", "EMCY_FOLLOWING_ERROR", "EMCY_INTERNAL_SOFTWARE", "EMCY_PDO_LENGTH",
+        "ERROR_REGISTER_COMMUNICATION", "ERROR_REGISTER_GENERIC", "ERROR_REGISTER_PROFILE",
+    ),
+    "hil_sim.drive.objects": ("EDS_PATH", "PROCESS_OBJECTS", "interpolation_period_s", "load_od"),
+    "hil_sim.drive.sdo": (
+        "ABORT_CANNOT_MAP", "ABORT_CANNOT_STORE", "ABORT_COMMAND_SPECIFIER", "ABORT_DEVICE_STATE",
+        "ABORT_INVALID_VALUE", "ABORT_PDO_LENGTH", "ABORT_TIMEOUT", "ABORT_TOGGLE",
+        "ABORT_VALUE_TOO_HIGH", "ABORT_VALUE_TOO_LOW", "SDO_TIMEOUT_S",
+    ),
+    "hil_sim.drive.virtual_drive": ("VirtualDrive",),
+    "hil_sim.int32": ("saturate_int32", "wrap_int32"),  # their home before hil_sim.int32
+}
+_LAZY = {name: module for module, names in _HOMES.items() for name in names}
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'hil_sim.drive' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted({*globals(), *__all__})

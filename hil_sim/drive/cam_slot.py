@@ -12,9 +12,10 @@ from ecam import CamTable
 from ecam.errors import TableFormatError
 from hil_sim.drive.objects import (
     ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_LAST_ERROR_CODE, CAM_LAST_ERROR_MESSAGE, CAM_MODE,
-    CAM_STATUS, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32, wrap_int32,
+    CAM_STATUS, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE
+from hil_sim.int32 import wrap_int32
 
 #: Cam control 0x2001:01 commands and 0x2001:02 status bits.
 CAM_COMMAND_NONE = 0

@@ -31,7 +31,7 @@ FAULT = "FAULT"
 
 #: Statusword bits 0-6 of each state (CiA 402 table 30, with bit 4 "voltage enabled" and bit 5
 #: "quick stop" as a drive with its power stage on reports them).
-STATUSWORD = {
+STATUSWORD_OF_STATE = {
     NOT_READY_TO_SWITCH_ON: 0x0000,
     SWITCH_ON_DISABLED: 0x0040,
     READY_TO_SWITCH_ON: 0x0031,

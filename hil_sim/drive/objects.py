@@ -3,16 +3,20 @@ uses, spelled as the EDS's ``ParameterName``.
 
 Each entry is an :class:`ObjectKey` (index, subindex); it is a tuple, so it is the same dict
 key as the ``(obj.index, obj.subindex)`` pairs built from PDO mappings.
+
+This module loads no CAN stack until an object dictionary is loaded (:func:`load_od`): the scene
+reader takes the 0x60C2 encoding from here without pulling in canopen.
 """
 
 from __future__ import annotations
 
 import copy
 import functools
+import math
 from pathlib import Path
 from typing import NamedTuple
 
-import canopen
+from hil_sim.int32 import saturate_int32, wrap_int32  # noqa: F401 - re-exported (their home before hil_sim.int32)
 
 #: The drive's electronic data sheet, shipped beside this module.
 EDS_PATH = Path(__file__).with_name("drive.eds")
@@ -48,6 +52,13 @@ COMMUNICATION_PARAMETERS = (range(0x1400, 0x1600), range(0x1800, 0x1A00))  # RPD
 COB_ID_USED_BY_PDO = 1  # subindex of a communication parameter
 TRANSMISSION_TYPE = 2  # subindex of a communication parameter
 NUMBER_OF_MAPPED_OBJECTS = 0  # subindex of a mapping parameter
+
+# CiA 301 data types (the EDS's DataType) -> struct code, for the types PDOs carry: BOOLEAN,
+# INTEGER8/16/32, UNSIGNED8/16/32, REAL32, INTEGER64, UNSIGNED64 (little-endian on the bus).
+STRUCT_CODES = {
+    0x01: "?", 0x02: "b", 0x03: "h", 0x04: "i", 0x05: "B", 0x06: "H", 0x07: "I",
+    0x08: "f", 0x15: "q", 0x1B: "Q",
+}
 
 # CiA 301: a COB-ID object holds the 11-bit CAN id in its low bits; bit 31 of a PDO's marks
 # the PDO as not existing.
@@ -102,11 +113,11 @@ PROCESS_OBJECTS = (
     CAM_MODE, PENDING_CAM_TABLE_CRC32,
 )
 
-_INT32 = 1 << 32
-
 
 @functools.lru_cache(maxsize=8)
 def _parsed_od(path: str, node_id: int):
+    import canopen  # here, not at the top: see the module docstring
+
     return canopen.import_od(path, node_id)
 
 
@@ -116,24 +127,41 @@ def load_od(path, node_id: int):
     return copy.deepcopy(_parsed_od(str(path), node_id))
 
 
+# 0x60C2 interpolation time period (CiA 402): value (UNSIGNED8, subindex 1) x 10^index s
+# (INTEGER8, subindex 2). The rig writes index -6..0 (1 us .. 1 s resolution: the periods the
+# drive runs are 10 us .. 1 s; the EDS allows index -7..0).
+INTERPOLATION_TIME_INDEXES = range(-6, 1)
+
+
+def interpolation_period(cycle_s: float) -> tuple[int, int] | None:
+    """The bus cycle as CiA 402 object 0x60C2 (interpolation time period) holds it; the inverse
+    of :func:`interpolation_period_s`.
+
+    Parameters
+    ----------
+    cycle_s : float
+        The cycle [s].
+
+    Returns
+    -------
+    tuple of (int, int) or None
+        ``(value, index)`` with ``value x 10^index == cycle_s``, value in 1..255 (UNSIGNED8)
+        and index in -6..0, the finest index that fits first; None when the cycle has no such
+        form (e.g. 1/3 ms).
+    """
+    for index in INTERPOLATION_TIME_INDEXES:
+        value = cycle_s / 10.0**index
+        if 1 <= round(value) <= 255 and math.isclose(value, round(value), rel_tol=1e-9):
+            return round(value), index
+    return None
+
+
 def interpolation_period_s(value: int, index: int) -> float:
-    """0x60C2 (CiA 402: interpolation time period = value x 10^index s) in seconds.
+    """0x60C2 (CiA 402: interpolation time period = value x 10^index s) in seconds; the inverse
+    of :func:`interpolation_period`.
 
     Divides for negative indexes: 10 x 10.0**-6 is 9.999...e-6, below the 10 us the scene
     validator allows, where 10 / 10**6 is exactly the float nearest 1e-5.
     """
     return value / 10.0 ** -index if index < 0 else value * 10.0 ** index
 
-
-def saturate_int32(value: int) -> int:
-    """Clamp to INTEGER32, the data type of 0x60B1 (CiA 402 velocity offset).
-
-    A position wraps like a modular counter, but a velocity that leaves its type has no
-    meaningful wrap: a sign flip would command full speed backwards. It saturates.
-    """
-    return max(-0x80000000, min(0x7FFFFFFF, value))
-
-
-def wrap_int32(value: int) -> int:
-    """Two's complement wrap of an integer to INTEGER32."""
-    return (value + (1 << 31)) % _INT32 - (1 << 31)

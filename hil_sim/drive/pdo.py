@@ -17,14 +17,9 @@ from hil_sim.drive.emcy import EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION
 from hil_sim.drive.objects import (
     CAN_ID_MASK, COB_ID_SYNC, COB_ID_USED_BY_PDO, COMMUNICATION_PARAMETERS, MAPPING_PARAMETERS,
     NUMBER_OF_MAPPED_OBJECTS, PDO_NOT_VALID, RPDO_COMMUNICATION_PARAMETER, RPDO_MAPPING_PARAMETER,
-    TPDO_COMMUNICATION_PARAMETER, TPDO_MAPPING_PARAMETER, TRANSMISSION_TYPE, ObjectKey,
+    STRUCT_CODES, TPDO_COMMUNICATION_PARAMETER, TPDO_MAPPING_PARAMETER, TRANSMISSION_TYPE, ObjectKey,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_MAP, ABORT_INVALID_VALUE, ABORT_PDO_LENGTH
-
-_STRUCT_CODES = {  # canopen data type -> struct code for PDO packing
-    0x01: "?", 0x02: "b", 0x03: "h", 0x04: "i", 0x05: "B", 0x06: "H", 0x07: "I",
-    0x08: "f", 0x15: "q", 0x1B: "Q",
-}
 
 PDOS_PER_DIRECTION = 4  # NrOfRXPDO and NrOfTXPDO of the EDS
 MAX_MAPPED_OBJECTS = 8  # mapping subindexes 1..8 in the EDS
@@ -71,7 +66,7 @@ def mapped_object(objects, entry: int, transmit: bool) -> ODVariable:
     except SdoAbortedError:
         raise SdoAbortedError(ABORT_CANNOT_MAP) from None
     readable_ok = obj.readable if transmit else obj.writable
-    if (not obj.pdo_mappable or not readable_ok or obj.data_type not in _STRUCT_CODES
+    if (not obj.pdo_mappable or not readable_ok or obj.data_type not in STRUCT_CODES
             or len(obj) != length):
         raise SdoAbortedError(ABORT_CANNOT_MAP)
     return obj
@@ -188,7 +183,7 @@ class PdoEngine:
                     entry = stored(ObjectKey(map_base + number, sub))
                     obj = mapped_object(self.objects, entry, transmit)
                     keys.append((obj.index, obj.subindex))
-                    codes += _STRUCT_CODES[obj.data_type]
+                    codes += STRUCT_CODES[obj.data_type]
                 pdo = Pdo(number + 1, cob & CAN_ID_MASK, trans_type, tuple(keys),
                           struct.Struct(codes))
                 if transmit:

@@ -16,6 +16,8 @@ import threading
 
 import can
 
+from ecam.errors import SimulationError
+
 logger = logging.getLogger(__name__)
 
 
@@ -88,7 +90,7 @@ class Runner:
     def start(self, boot) -> None:
         """Call ``boot`` and handle frames in a thread until :meth:`stop`."""
         if self.thread is not None:
-            raise RuntimeError("the drive is already running")
+            raise SimulationError("the drive is already running: stop() it before start()")
         self.running = True
         self.failure = None
         with self.lock:

@@ -9,7 +9,7 @@ import can
 from canopen.objectdictionary import NUMBER_TYPES
 from canopen.sdo import SdoAbortedError
 
-from ecam.errors import InputError
+from ecam import validate
 from hil_sim.bus import SimNetwork, open_virtual_bus
 from hil_sim.drive.cia402 import (
     CYCLIC_SYNCHRONOUS_POSITION, ENERGIZED, FAULT, FAULT_REACTION_ACTIVE, OPERATION_ENABLED,
@@ -29,10 +29,10 @@ from hil_sim.drive.objects import (
     MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, MOTOR_RATED_TORQUE, NMT_COB_ID,
     PDO_PARAMETERS, POSITION_ACTUAL_VALUE, PROCESS_OBJECTS, PRODUCER_HEARTBEAT_TIME,
     SDO_RECEIVE_COB_ID, SDO_TRANSMIT_COB_ID, TARGET_POSITION, TORQUE_ACTUAL_VALUE,
-    VELOCITY_ACTUAL_VALUE, VELOCITY_OFFSET, interpolation_period_s, load_od, saturate_int32,
-    wrap_int32,
+    VELOCITY_ACTUAL_VALUE, VELOCITY_OFFSET, interpolation_period_s, load_od,
 )
 from hil_sim.drive.pdo import PdoEngine, check_cob_id, check_pdo_write
+from hil_sim.int32 import saturate_int32, wrap_int32
 from hil_sim.drive.power_state import PowerStateMachine
 from hil_sim.drive.runner import Runner
 from hil_sim.drive.sdo import (
@@ -100,9 +100,7 @@ class VirtualDrive:
                  excitation_hz: float = 0.0, plant_effects=None, drive_effects=None,
                  feedforward: str = "target", initial_counts: int = 0,
                  heartbeat_ms: int | None = None, eds=None) -> None:
-        if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
-            raise InputError(f"node_id {node_id!r} should be an integer in 1..127")
-        self.node_id = node_id
+        self.node_id = validate.integer("node_id", node_id, minimum=1, maximum=127)  # CiA 301 node ids
         self.mechanics = mechanics if mechanics is not None else _default_mechanics()
         self.gains = gains if gains is not None else Gains.from_mechanics(
             self.mechanics, velocity_feedforward=0.0)

@@ -18,19 +18,19 @@ from __future__ import annotations
 from hil_sim.control import AxisSetup
 from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE, CamSlot
 from hil_sim.drive.cia402 import (
-    OPERATION_ENABLED, STATUSWORD, SW_FOLLOWING_COMMAND, SW_REMOTE,
+    OPERATION_ENABLED, STATUSWORD_OF_STATE, SW_FOLLOWING_COMMAND, SW_REMOTE,
 )
 from hil_sim.drive.emcy import EMCY_FOLLOWING_ERROR
 from hil_sim.drive.objects import (
-    CAM_MODE, CAM_STATUS, MASTER_POSITION, interpolation_period_s, wrap_int32,
+    CAM_MODE, CAM_STATUS, MASTER_POSITION, interpolation_period, interpolation_period_s,
 )
 from hil_sim.drive.power_state import FOLLOWING_ERROR_WINDOW_OFF
+from hil_sim.int32 import wrap_int32
 from hil_sim.rig.plan import PreparedRun, wire_set_points
 from hil_sim.rig.record import Record, Recorder
-from hil_sim.scene import interpolation_period
 
 #: The statusword a drive in OPERATION ENABLED, cyclic synchronous position, reports.
-_STATUSWORD_CSP = STATUSWORD[OPERATION_ENABLED] | SW_REMOTE | SW_FOLLOWING_COMMAND
+_STATUSWORD_CSP = STATUSWORD_OF_STATE[OPERATION_ENABLED] | SW_REMOTE | SW_FOLLOWING_COMMAND
 
 
 def drive_cycle_s(cycle_s: float) -> float:

@@ -24,6 +24,7 @@ import can
 
 from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, arbitrate, frame_bits
 from hil_sim.drive import VirtualDrive, cia402
+from hil_sim.drive.objects import ERROR_CODE, STATUSWORD, TARGET_POSITION
 from hil_sim.rig.network import LockstepMaster, pdo_codec
 from hil_sim.rig.plan import Plan, wire_set_points
 from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
@@ -87,7 +88,7 @@ class _Cycles:
         if drive_side:
             self.fields = (first,)
         else:  # in the RPDO's mapping order
-            self.fields = tuple(first if i == 0x607A else second for i in indexes)
+            self.fields = tuple(first if i == TARGET_POSITION.index else second for i in indexes)
         self.rpdo_cob_id = rpdo.cob_id
         self.pack = codec.pack
         self.rpdo_length = codec.size
@@ -228,6 +229,6 @@ class _Cycles:
         drive = self.drive
         if drive.state not in (cia402.FAULT, cia402.FAULT_REACTION_ACTIVE):
             return None
-        code = drive.values[(0x603F, 0)]
+        code = drive.values[ERROR_CODE]
         return (f"drive fault 0x{code:04X} at cycle {k} (t {now + self.cycle_s:.6g} s), "
-                f"statusword 0x{drive.values[(0x6041, 0)]:04X}")
+                f"statusword 0x{drive.values[STATUSWORD]:04X}")

@@ -10,14 +10,16 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from ecam.errors import SimulationError
 from hil_sim.bus import BusLoad, SimNetwork, frame_bits
-from hil_sim.drive import CAM_COMMAND_ACTIVATE, VirtualDrive, cia402
+from hil_sim.drive import VirtualDrive, cia402
+from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE
+from hil_sim.drive.objects import (
+    ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_MODE, CAM_TABLE_DOWNLOAD, CONTROLWORD,
+    FOLLOWING_ERROR_WINDOW, INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD_VALUE,
+    MODES_OF_OPERATION, PENDING_CAM_TABLE_CRC32, STATUSWORD, STRUCT_CODES, ObjectKey,
+    interpolation_period,
+)
 from hil_sim.rig.cam import CompiledCam
-from hil_sim.scene import Scene, interpolation_period
-
-# canopen data type -> struct code, for the integer types the drive maps into PDOs.
-# A second copy, wider, lives in hil_sim.drive.pdo: the drive's own, private one. Kept apart
-# for now; one table for both belongs with the object dictionary when that is shared.
-_STRUCT_CODES = {0x02: "b", 0x03: "h", 0x04: "i", 0x05: "B", 0x06: "H", 0x07: "I"}
+from hil_sim.scene import Scene
 
 
 class LockstepMaster(SimNetwork):
@@ -72,8 +74,16 @@ class LockstepMaster(SimNetwork):
 
 def pdo_codec(pdo_map) -> tuple[struct.Struct, list[int]]:
     """The struct packing a PDO's mapped objects, and their indexes in mapping order."""
-    codes = "<" + "".join(_STRUCT_CODES[var.od.data_type] for var in pdo_map.map)
+    codes = "<" + "".join(STRUCT_CODES[var.od.data_type] for var in pdo_map.map)
     return struct.Struct(codes), [var.index for var in pdo_map.map]
+
+
+def sdo_entry(sdo, key: ObjectKey):
+    """The entry of a canopen SDO client (``node.sdo``) for an object key: the variable itself for
+    subindex 0 (the drive's keys with subindex 0 are plain variables), else that subindex of the
+    record or array."""
+    entry = sdo[key.index]
+    return entry[key.subindex] if key.subindex else entry
 
 
 def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualDrive,
@@ -119,10 +129,10 @@ def _configure(scene: Scene, node) -> None:
     """Interpolation period, following-error window and mode, by SDO."""
     sdo = node.sdo
     value, index = interpolation_period(scene.drive.cycle_s)
-    sdo[0x60C2][1].raw = value
-    sdo[0x60C2][2].raw = index
-    sdo[0x6065].raw = scene.drive.following_error_window
-    sdo[0x6060].raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
+    sdo_entry(sdo, INTERPOLATION_TIME_PERIOD_VALUE).raw = value
+    sdo_entry(sdo, INTERPOLATION_TIME_INDEX).raw = index
+    sdo_entry(sdo, FOLLOWING_ERROR_WINDOW).raw = scene.drive.following_error_window
+    sdo_entry(sdo, MODES_OF_OPERATION).raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
 
 
 def _download_table(scene: Scene, controller: LockstepMaster, node, table) -> dict:
@@ -130,16 +140,16 @@ def _download_table(scene: Scene, controller: LockstepMaster, node, table) -> di
     sdo = node.sdo
     blob = table.to_bytes()
     before = controller.frames
-    sdo.download(0x2000, 0, blob)
+    sdo.download(CAM_TABLE_DOWNLOAD.index, CAM_TABLE_DOWNLOAD.subindex, blob)
     frames = controller.frames - before
-    if sdo[0x2005].raw != table.crc32:
-        raise SimulationError(f"drive pending table CRC 0x{sdo[0x2005].raw:08x}, "
-                              f"expected 0x{table.crc32:08x}")
-    sdo[0x2001][1].raw = CAM_COMMAND_ACTIVATE
-    if sdo[0x2002].raw != table.crc32:
-        raise SimulationError(f"drive active table CRC 0x{sdo[0x2002].raw:08x}, "
-                              f"expected 0x{table.crc32:08x}")
-    sdo[0x2004].raw = 1
+    pending = sdo_entry(sdo, PENDING_CAM_TABLE_CRC32).raw
+    if pending != table.crc32:
+        raise SimulationError(f"drive pending table CRC 0x{pending:08x}, expected 0x{table.crc32:08x}")
+    sdo_entry(sdo, CAM_COMMAND).raw = CAM_COMMAND_ACTIVATE
+    active = sdo_entry(sdo, ACTIVE_CAM_TABLE_CRC32).raw
+    if active != table.crc32:
+        raise SimulationError(f"drive active table CRC 0x{active:08x}, expected 0x{table.crc32:08x}")
+    sdo_entry(sdo, CAM_MODE).raw = CAM_MODE_DRIVE_SIDE
     return {"bytes": len(blob), "frames": frames,
             "seconds_at_bitrate": frames * frame_bits(8) / scene.bus.bitrate}
 
@@ -149,9 +159,9 @@ def _enable(controller: LockstepMaster, node) -> None:
     rpdo1 = node.rpdo[1]
     codec, indexes = pdo_codec(rpdo1)
     for controlword in (0x06, 0x07, 0x0F):  # shutdown, switch on, enable operation
-        fields = {0x6040: controlword, 0x6060: cia402.CYCLIC_SYNCHRONOUS_POSITION}
+        fields = {CONTROLWORD.index: controlword, MODES_OF_OPERATION.index: cia402.CYCLIC_SYNCHRONOUS_POSITION}
         controller.send_message(rpdo1.cob_id, codec.pack(*[fields[i] for i in indexes]))
-    statusword = node.sdo[0x6041].raw
+    statusword = sdo_entry(node.sdo, STATUSWORD).raw
     if statusword & 0x6F != 0x27:
         raise SimulationError(f"drive statusword 0x{statusword:04x} after enabling, expected "
                               "OPERATION ENABLED (0x27 under mask 0x6F)")

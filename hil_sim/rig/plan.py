@@ -22,6 +22,7 @@ from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
 from hil_sim.control import Gains
 from hil_sim.effects import EffectValues
+from hil_sim.int32 import saturate_int32_array, wrap_int32_array
 from hil_sim.master import ConstantSpeed, StartStop, cam_in
 from hil_sim.rig.cam import CompiledCam
 from hil_sim.scene import MAX_CYCLES, Scene
@@ -197,16 +198,10 @@ def cruise_s(scene: Scene, cam: CompiledCam) -> float:
     return float(getattr(master, "at_speed_s", 0.0))
 
 
-def wrap_int32(counts: np.ndarray) -> np.ndarray:
-    """Counts as INTEGER32 on the wire: positions wrap (two's complement)."""
-    return (np.asarray(counts, dtype=np.int64) + 2**31) % 2**32 - 2**31
-
-
 def wire_set_points(plan: Plan, drive_side: bool) -> tuple[np.ndarray, np.ndarray | None]:
     """What goes on the bus each cycle, as int64 arrays: drive-side the master position
     (0x2003) and None; controller-side the target (0x607A) and the velocity offset (0x60B1,
     rounded and saturated to INTEGER32)."""
     if drive_side:
-        return wrap_int32(plan.master_end), None
-    velocities = np.clip(np.rint(plan.velocities), -2**31, 2**31 - 1).astype(np.int64)
-    return wrap_int32(plan.targets), velocities
+        return wrap_int32_array(plan.master_end), None
+    return wrap_int32_array(plan.targets), saturate_int32_array(np.rint(plan.velocities))

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_sim.control import ServoAxis
+from hil_sim.drive.objects import FOLLOWING_ERROR_ACTUAL_VALUE, STATUSWORD
 
-#: Series read from the drive's TPDOs (what a controller sees): object -> name.
-FROM_TPDOS = {0x6041: "statusword", 0x60F4: "following_error"}
+#: Series read from the drive's TPDOs (what a controller sees): object index -> name.
+FROM_TPDOS = {STATUSWORD.index: "statusword", FOLLOWING_ERROR_ACTUAL_VALUE.index: "following_error"}
 #: Series read from the axis after each cycle (what a real rig would measure at the load).
 PROBED = ServoAxis.READINGS
 

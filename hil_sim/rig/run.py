@@ -147,7 +147,9 @@ def describe_selection(report: Report, selection: Selection) -> None:
     if selection.proof is not None:
         report.summary["fidelity_proof"] = selection.proof
     compliance = next(c for c in selection.choices if c.name == "torsional_compliance")
-    if compliance.value != "n/a" or report.model == "two_mass":
+    if compliance.value == "n/a":
+        report.model_reason = "rigid model: no coupling stiffness given, motor and load move as one."
+    else:
         kind = "two-mass model" if report.model == "two_mass" else "rigid model"
         report.model_reason = f"{kind}: {compliance.why}."
 

@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from ecam.errors import EcamError, InputError
-from ecam.validate import integer, number
+from ecam.validate import fail, integer, number
 from hil_sim.rig.cam import compile_cam
 from hil_sim.rig.plan import cruise_s
 from hil_sim.rig.run import run_scene
@@ -94,9 +94,9 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    tolerance = number("tolerance", tolerance, minimum=0.0, maximum=1.0, strict=True)
+    tolerance = number("tolerance", tolerance, minimum=0.0, strict=True)
     if tolerance >= 1.0:
-        raise InputError(f"tolerance {tolerance!r} should be in (0, 1)")
+        raise fail("tolerance", tolerance, "< 1 (a share of the passing speed)")
     max_runs = integer("max_runs", max_runs, minimum=4, maximum=10_000)
     profile = scene.cam.load_profile()
     unit = profile.master_unit

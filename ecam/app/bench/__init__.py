@@ -48,9 +48,13 @@ and a ``kind``:
   same keys; sequential timings are divided by ``numpy_interp_sequential``, the others by
   ``numpy_interp``), ``max_error_counts_on_queries`` (the error of the Python lookup and of each
   peer on the random queries), ``c_checksum_match`` (True, False or None).
-- ``"rig"``: ``cycle_hz``, ``real_time_factor``, ``loop_real_time_factor``, ``us_per_cycle`` and
-  ``cost_us_per_cycle`` (``lookup``, ``canopen``, ``drive_loop``, ``plant``), or
-  ``available: false`` with a ``reason``.
+- ``"rig"``: ``cycle_hz``, ``substeps``, ``real_time_factor`` (whole run, the effects'
+  measurement included), ``effects_s`` and ``fidelity_runs`` (that measurement),
+  ``loop_real_time_factor`` (the loop over CANopen), ``fast_real_time_factor`` (the same control
+  and plant bus-free), ``us_per_cycle`` and ``cost_us_per_cycle`` (``lookup``, ``canopen``,
+  ``drive_loop``, ``plant``), or ``available: false`` with a ``reason``.
+- ``"rig_search"``: find-max-speed on the scene: ``wall_s``, ``speed``, ``unit``,
+  ``trials_fast``, ``trials_canopen``, ``limiting_check``, ``resolution``.
 - ``"target"``: ``name``, ``value``, ``relation``, ``limit``, ``met``, ``factor`` (value / limit),
   ``verdict`` (one line saying met or missed and by how much), ``detail``.
 - ``"note"``: ``text`` (the scale, the queries, what was skipped and why).
@@ -61,7 +65,7 @@ Targets are shown, never asserted: the numbers depend on the machine.
 from __future__ import annotations
 
 from .c_runtime import CRuntime
-from .plan import (IMPLEMENTATIONS, LAW_NAMES, MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, BenchPlan, bench_plan,
+from .plan import (BENCH_LAWS, IMPLEMENTATIONS, MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, BenchPlan, bench_plan,
                    bench_profile, bench_queries, checksum, plan_jobs)
 from .plot import pareto_front, plot_pareto, worst_over_cams
 from .rig import bench_rig
@@ -71,7 +75,7 @@ from .targets import TARGET_TEXT, evaluate_targets, target
 from .text import CONTRACT_KEYS, contract_rows, format_text
 
 __all__ = [
-    "BenchPlan", "CONTRACT_KEYS", "CRuntime", "IMPLEMENTATIONS", "LAW_NAMES", "LawContext", "MASTER_COUNTS",
+    "BENCH_LAWS", "BenchPlan", "CONTRACT_KEYS", "CRuntime", "IMPLEMENTATIONS", "LawContext", "MASTER_COUNTS",
     "SEED_CAM", "STROKE_COUNTS", "TARGET_TEXT", "bench_plan", "bench_profile", "bench_queries", "bench_rig",
     "bench_table", "checksum", "contract_rows", "evaluate_targets", "format_text", "main", "median_ns",
     "pareto_front", "plan_jobs", "plot_pareto", "run_bench", "target", "worst_over_cams",

@@ -1,4 +1,5 @@
-"""The C runtime under the bench: ecam_bench.c + ecam_table.c compiled once, run on query files."""
+"""The C runtime under the bench: ecam_bench.c (with ecam_host_io.c) + ecam_table.c compiled once, run on
+query files."""
 
 from __future__ import annotations
 
@@ -7,19 +8,20 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .plan import FIRMWARE_DIR
+from ..firmware import FIRMWARE_DIR
 
 
 class CRuntime:
-    """ecam_bench.c + ecam_table.c compiled once into a temporary directory."""
+    """ecam_bench.c, ecam_host_io.c and ecam_table.c compiled once into a temporary directory."""
 
     def __init__(self, directory: Path):
         self.directory = directory
         self.executable = None
         self.note = ""
         self.command = ""
-        sources = [FIRMWARE_DIR / "ecam_bench.c", FIRMWARE_DIR / "ecam_table.c"]
-        missing = [str(s) for s in sources + [FIRMWARE_DIR / "ecam_table.h"] if not s.is_file()]
+        sources = [FIRMWARE_DIR / "ecam_bench.c", FIRMWARE_DIR / "ecam_host_io.c", FIRMWARE_DIR / "ecam_table.c"]
+        headers = [FIRMWARE_DIR / "ecam_table.h", FIRMWARE_DIR / "ecam_host_io.h"]
+        missing = [str(s) for s in sources + headers if not s.is_file()]
         compiler = next((shutil.which(c) for c in (os.environ.get("CC", "cc"), "cc", "gcc", "clang")
                          if c and shutil.which(c)), None)
         if missing:
@@ -30,7 +32,7 @@ class CRuntime:
             return
         exe = directory / "ecam_bench"
         cmd = [compiler, "-O2", "-std=c99", "-I", str(FIRMWARE_DIR), "-o", str(exe), *map(str, sources)]
-        self.command = f"{Path(compiler).name} -O2 -std=c99 ecam_bench.c ecam_table.c"
+        self.command = f"{Path(compiler).name} -O2 -std=c99 ecam_bench.c ecam_host_io.c ecam_table.c"
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
         except (OSError, subprocess.TimeoutExpired) as exc:

@@ -19,9 +19,10 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .plan import FIRMWARE_DIR
+from ..firmware import FIRMWARE_DIR
 
-RUNTIME_SOURCES = ("ecam_target.c", "ecam_table.c", "ecam_minimal.c")
+# The driver (ecam_target.c and its file reader, semihosted on the M4) and what it measures.
+RUNTIME_SOURCES = ("ecam_target.c", "ecam_host_io.c", "ecam_table.c", "ecam_minimal.c")
 M4_FLAGS = ("-mcpu=cortex-m4", "-mthumb", "-std=c99")
 M4_MACHINE = "mps2-an386"
 

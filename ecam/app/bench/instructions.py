@@ -49,12 +49,12 @@ from pathlib import Path
 import numpy as np
 
 from ecam.compile import compile_table
-from ecam.table import CamTable
+from ecam.table import KINDS, CamTable
 
+from ..firmware import FIRMWARE_DIR
 from .cross import M4_FLAGS, M4_MACHINE, TARGETS, build, missing, run
-from .plan import FIRMWARE_DIR, MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
+from .plan import MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
 
-DEGREES = {1: "linear", 3: "cubic", 5: "quintic"}
 NET_STROKE_CAM = "rotary_knife"  # golden tables in firmware_tables/vectors with a net stroke
 LIMITS = {"inside": 2.0, "wide": 3.0}
 HOST_FLAGS = ("-O2", "-std=c99")
@@ -143,13 +143,13 @@ def _compile(compiler: str, flags: list, source: str, obj: Path, what: str, reus
 
 
 def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | None = None) -> Measured:
-    """x86-64 counts of one table (cc -O2), per call; ecam_table.o and ecam_target.o are built
-    once into `shared` (default: `directory`)."""
+    """x86-64 counts of one table (cc -O2), per call; ecam_table.o, ecam_target.o and its file
+    reader ecam_host_io.o are built once into `shared` (default: `directory`)."""
     cc = host_compiler()
     shared = shared or directory
     exe = directory / "ecam_count_host"
     objects = [_compile(cc, list(HOST_FLAGS), f"{stem}.c", shared / f"host_{stem}.o", "host build")
-               for stem in ("ecam_target", "ecam_table")]
+               for stem in ("ecam_target", "ecam_host_io", "ecam_table")]
     objects.append(_compile(cc, [*HOST_FLAGS, *minimal_defines(fmt)], "ecam_minimal.c", directory / "host_minimal.o",
                             "host build", reuse=False))  # fmt: skip
     proc = subprocess.run([cc, *map(str, objects), "-o", str(exe)], capture_output=True, text=True, timeout=300)
@@ -157,7 +157,7 @@ def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | No
         raise RuntimeError(f"host link failed: {(proc.stderr.strip().splitlines() or ['?'])[0]}")
     (directory / "table.bin").write_bytes(blob)
     inside, wide = write_queries(directory, fmt.master_counts, count)
-    name = DEGREES[fmt.degree]
+    name = fmt.interp
     runtime_in, out_in = _callgrind(exe, ["count", "table.bin", "runtime", inside], "ecam_table_position", directory)
     runtime_wide, _ = _callgrind(exe, ["count", "table.bin", "runtime", wide], "ecam_table_position", directory)
     minimal, out_min = _callgrind(exe, ["count", "table.bin", "minimal", inside], f"ecam_minimal_{name}", directory)
@@ -178,13 +178,13 @@ def m4_note() -> str:
 
 
 def _objects(directory: Path, opt: str, defines: list, shared: Path | None = None) -> dict:
-    """ecam_table.o, ecam_target.o (built once into `shared`) and ecam_minimal.o (with this
-    table's constants, into `directory`) for the M4 at `opt`; their symbols delimit the
-    counting, and -fstack-usage writes each one's frames next to it."""
+    """ecam_table.o, ecam_target.o, ecam_host_io.o (built once into `shared`) and ecam_minimal.o
+    (with this table's constants, into `directory`) for the M4 at `opt`; their symbols delimit
+    the counting, and -fstack-usage writes each one's frames next to it."""
     shared = shared or directory
     flags = [*M4_FLAGS, opt, "-fstack-usage"]
     out = {stem: _compile("arm-none-eabi-gcc", flags, f"{stem}.c", shared / f"m4{opt}_{stem}.o", "cortex-m4")
-           for stem in ("ecam_table", "ecam_target")}
+           for stem in ("ecam_table", "ecam_target", "ecam_host_io")}
     out["ecam_minimal"] = _compile("arm-none-eabi-gcc", [*flags, *defines], "ecam_minimal.c",
                                    directory / f"m4{opt}_ecam_minimal.o", "cortex-m4", reuse=False)  # fmt: skip
     return out
@@ -192,7 +192,7 @@ def _objects(directory: Path, opt: str, defines: list, shared: Path | None = Non
 
 def _m4_link(directory: Path, opt: str, objects: dict, name: str) -> Path:
     """The count/stack driver for the M4 from the objects of :func:`_objects`."""
-    sources = [str(objects[stem]) for stem in ("ecam_target", "ecam_table", "ecam_minimal")]
+    sources = [str(objects[stem]) for stem in ("ecam_target", "ecam_host_io", "ecam_table", "ecam_minimal")]
     return build(TARGETS["cortex-m4"], directory / name, [opt], sources=sources)
 
 
@@ -325,7 +325,7 @@ def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2", s
     inside, wide = write_queries(directory, fmt.master_counts, count)
     runs = {}
     for what, entry, obj, queries in (("runtime", "ecam_table_position", objects["ecam_table"], [inside, wide]),
-                                      ("minimal", f"ecam_minimal_{DEGREES[fmt.degree]}", objects["ecam_minimal"], [inside])):
+                                      ("minimal", f"ecam_minimal_{fmt.interp}", objects["ecam_minimal"], [inside])):
         trace = directory / "trace.log"
         ranges = count_ranges(elf, [obj], entry)
         proc = run(target, elf, ["count", "table.bin", what, *queries], directory, trace=trace, ranges=ranges)
@@ -401,10 +401,10 @@ def bench_tables(quick: bool) -> list:
     scale = STROKE_COUNTS / (high - low)
     out = []
     for points in (145,) if quick else (145, 97):
-        for kind in ("linear", "cubic", "quintic"):
+        for kind in KINDS:
             out.append((SEED_CAM, compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
                                                 slave_counts_per_unit=scale)))  # fmt: skip
-    for kind in () if quick else ("linear", "cubic", "quintic"):
+    for kind in () if quick else KINDS:
         path = FIRMWARE_DIR / "vectors" / f"{NET_STROKE_CAM}_{kind}.bin"
         if path.is_file():
             out.append((NET_STROKE_CAM, CamTable.from_bytes(path.read_bytes())))
@@ -414,7 +414,7 @@ def bench_tables(quick: bool) -> list:
 def _describe(cam: str, table) -> str:
     f = table.format
     net = f", net stroke {f.net_stroke_num}/{f.net_stroke_den}" if f.net_stroke_num else ""
-    return f"{cam} {DEGREES[f.degree]}, {f.points} points (h = {f.step_counts}{net})"
+    return f"{cam} {f.interp}, {f.points} points (h = {f.step_counts}{net})"
 
 
 def _row(target: str, compiler: str, cam: str, table, m: Measured, count: int) -> dict:
@@ -424,7 +424,7 @@ def _row(target: str, compiler: str, cam: str, table, m: Measured, count: int) -
             f"{m.ratio_inside:.2f}x / {m.ratio_wide:.2f}x (limits {LIMITS['inside']:g}x / {LIMITS['wide']:g}x): "
             f"{'met' if met else 'MISSED'}{'' if m.checksums_match else '; CHECKSUMS DIFFER'}")
     return {"kind": "note", "topic": "instructions", "target": target, "compiler": compiler, "cam": cam,
-            "interp": DEGREES[table.format.degree], "points": table.points, "step_counts": table.format.step_counts,
+            "interp": table.interp, "points": table.points, "step_counts": table.format.step_counts,
             "net_stroke": str(table.format.net_stroke), "queries": count,
             "instructions_runtime_inside": m.runtime_inside,
             "instructions_runtime_wide": m.runtime_wide, "instructions_minimal": m.minimal,
@@ -471,7 +471,7 @@ def instruction_rows(directory: Path, quick: bool) -> list[dict]:
     work = directory / "m4_footprint"
     work.mkdir()
     try:
-        blobs = {f"{cam} {DEGREES[t.format.degree]}{', net stroke' if t.format.net_stroke_num else ''}":
+        blobs = {f"{cam} {t.interp}{', net stroke' if t.format.net_stroke_num else ''}":
                  t.to_bytes() for cam, t in tables if t.points == 145 or t.format.net_stroke_num}
         for f in m4_footprint(work, blobs, shared=shared):
             stack = f["stack_per_call"]

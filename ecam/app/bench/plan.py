@@ -3,22 +3,20 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from ecam.camfile import CAMS_DIR, load_cam, parse_cam
+from ecam.table import KINDS
 
 MASTER_COUNTS = 9 * 2**17  # 1179648: every 20-degree joint of the seed and every 1/16 period on a power-of-two step
 STROKE_COUNTS = 1e9  # slave counts of every cam's stroke (positions stay inside int32)
-LAW_NAMES = ("cycloidal", "poly345", "modified_sine", "harmonic")
+BENCH_LAWS = ("cycloidal", "poly345", "modified_sine", "harmonic")  # each as a rise and its mirrored return
 SEED_CAM = "combination_drrd"
-KIND_NAMES = ("linear", "cubic", "quintic", "auto")
 TARGET_FRACTION = 1e-6  # of the stroke, for the bytes target
 RIG_CYCLES_HZ = (1000, 4000)
 RIG_SCENE = "stiff_coupling.toml"
 _MIX = 0x9E3779B97F4A7C15  # checksum mixing constant, as in ecam_bench.c
-FIRMWARE_DIR = Path(__file__).resolve().parents[3] / "firmware_tables"
 _RANDOM_SEED = 20240917
 
 # Implementation keys of ns_per_lookup, and which numpy.interp timing each is a ratio to.
@@ -52,11 +50,11 @@ def bench_plan(quick: bool) -> BenchPlan:
             queries=2**14, repeats=3, rig_repeats=1,
         )
     return BenchPlan(
-        laws=(*LAW_NAMES, SEED_CAM),
+        laws=(*BENCH_LAWS, SEED_CAM),
         intervals={"linear": (144, 576, 2304, 9216, 36864), "cubic": (36, 144, 576, 2304, 9216),
                    "quintic": (18, 72, 288, 1152, 4608)},
         auto_tolerances=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8),
-        kind_tolerances=("linear", "cubic", "quintic"),
+        kind_tolerances=tuple(KINDS),
         queries=2**18, repeats=7, rig_repeats=3,
     )
 
@@ -68,7 +66,7 @@ def bench_profile(name: str):
     """The cam of one bench row: a law as a rise over half the period and its mirror-image
     return (periodic, stroke 1 'stroke' unit), or the seed cam file of that name."""
 
-    if name in LAW_NAMES:
+    if name in BENCH_LAWS:
         return parse_cam({
             "name": name, "master_period": 360.0, "periodic": True, "master_unit": "deg",
             "slave_unit": "stroke",
@@ -101,7 +99,7 @@ def checksum(positions) -> int:
 def plan_jobs(plan: BenchPlan) -> list[dict]:
     jobs = []
     for law in plan.laws:
-        for kind in ("linear", "cubic", "quintic"):
+        for kind in KINDS:
             for intervals in plan.intervals[kind]:
                 jobs.append({"law": law, "interp": kind, "intervals": intervals})
         for kind in plan.kind_tolerances:

@@ -7,7 +7,7 @@ import tempfile
 from pathlib import Path
 
 from ecam.errors import EcamError, InputError
-from ecam.export import plain
+from ecam.export import json_safe
 
 from ..progress import progress_bar
 from .c_runtime import CRuntime
@@ -96,7 +96,7 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
         step()
     rows += bench_rig(plan.rig_repeats, progress=step)
     rows += evaluate_targets(rows)
-    return [plain(row) for row in rows]
+    return [json_safe(row) for row in rows]
 
 
 

@@ -53,14 +53,21 @@ def format_text(rows: list[dict]) -> str:
                           for key, name in (("lookup", "lookup"), ("canopen", "CANopen"),
                                             ("drive_loop", "drive loop"), ("plant", "plant")))
         lines.append(
-            f"  {r['scene']} at {r['cycle_hz'] / 1000:g} kHz: {r['cycles']} cycles ({r['simulated_s']:.3g} s "
-            f"simulated) in {r['wall_s']:.3g} s: real-time factor {r['real_time_factor']:.3g}x "
-            f"(loop alone {r['loop_real_time_factor']:.3g}x); "
+            f"  {r['scene']} at {r['cycle_hz'] / 1000:g} kHz ({r['substeps']} controller periods a "
+            f"cycle): {r['cycles']} cycles ({r['simulated_s']:.3g} s simulated) in {r['wall_s']:.3g} s: "
+            f"real-time factor {r['real_time_factor']:.3g}x (effects measured in {r['effects_s']:.3g} s "
+            f"on {r['fidelity_runs']} bus-free runs); loop over CANopen {r['loop_real_time_factor']:.3g}x, "
+            f"bus-free {r['fast_real_time_factor']:.3g}x real time; "
             f"{r['us_per_cycle']:.1f} us per cycle: {split}; setup {1e3 * r['setup_s']:.0f} ms; "
             f"checks {'passed' if r['passed'] else 'failed: ' + ', '.join(r['failed_checks'])}")
     notes = next((r.get("notes") for r in rig if r.get("notes")), None)
     if notes:
         lines += [f"  ({n})" for n in notes]
+    for r in (r for r in rows if r.get("kind") == "rig_search"):
+        found = "none" if r["speed"] is None else f"{r['speed']:.4g} {r['unit']}"
+        lines.append(f"  find-max-speed on {r['scene']}: {found} in {r['wall_s']:.3g} s "
+                     f"({r['trials_fast']} bus-free trials, {r['trials_canopen']} over CANopen; "
+                     f"resolution {r['resolution']:.3g} {r['unit']})")
     lines += _instruction_lines(rows)
     targets = [r for r in rows if r.get("kind") == "target"]
     if targets:

@@ -19,7 +19,8 @@ import ecam.validate as validate  # the module, not the package: no edge to ecam
 from .design import combination_segments
 from .errors import CamFileError
 from .laws import LAW_NAMES, LAWS
-from .profile import BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_master_period, check_span
+from .profile import (BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_master_period, check_segment_count,
+                      check_span)
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
@@ -73,7 +74,7 @@ def read_toml(path, what: str) -> dict:
         the parser included): one line naming the file and what is wrong.
     """
     path = Path(path)
-    shown = repr(str(path))
+    shown = show(str(path))  # cut to 60 characters: a hostile path cannot flood the terminal
     try:
         # O_NONBLOCK: opening a FIFO with no writer must not wait; the type check follows.
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
@@ -81,13 +82,21 @@ def read_toml(path, what: str) -> dict:
         raise CamFileError(f"{what} {shown} does not exist") from None
     except OSError as exc:
         raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
-    with os.fdopen(fd, "rb") as handle:
-        info = os.fstat(handle.fileno())
+    except ValueError:  # a NUL character, which no path holds
+        raise CamFileError(f"{what} {shown} should be a path without NUL characters") from None
+    try:
+        # The type before anything else: a directory opens read-only but cannot be read.
+        info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
             raise CamFileError(f"{what} {shown} should be a regular file")
         if info.st_size > MAX_FILE_BYTES:
             raise CamFileError(f"{what} {shown}: {info.st_size} bytes should be at most "
                                f"{MAX_FILE_BYTES}")
+        handle = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    with handle:
         try:
             data = handle.read(MAX_FILE_BYTES + 1)
         except OSError as exc:
@@ -100,6 +109,8 @@ def read_toml(path, what: str) -> dict:
         raise CamFileError(f"{what} {shown} should be UTF-8 text: {exc.reason} at byte {exc.start}") from None
     except tomllib.TOMLDecodeError as exc:
         raise CamFileError(f"{what} {shown} is not valid TOML: {exc}") from None
+    except ValueError as exc:  # an integer longer than Python converts (4300 digits)
+        raise CamFileError(f"{what} {shown} cannot be read as TOML: {str(exc).split(';')[0]}") from None
     except RecursionError:
         raise CamFileError(f"{what} {shown}: arrays or tables nest too deeply to parse") from None
 
@@ -132,6 +143,8 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
         raise top.error("segment: missing; expected at least one [[segment]] table")
     if not isinstance(raw_segments, list) or not all(isinstance(s, dict) for s in raw_segments):
         raise top.error(f"segment: {show(raw_segments)} should be an array of tables ([[segment]])")
+    with top.calling():
+        check_segment_count(len(raw_segments), "segment")  # before any is built
 
     # Segments in order; a poly5/poly7 waits (as its Fields and placement) for its neighbours.
     entries: list = []

@@ -8,6 +8,7 @@ profile's derivatives and measure the integer lookup against the analytic profil
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 from fractions import Fraction
@@ -18,8 +19,8 @@ from .certificate import Certificate, Measurement
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
-    HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable, TableFormat,
-    overflow_proof,
+    HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable,
+    TableFormat, divisors, overflow_proof,
 )
 from .table_spec import MAX_POINTS, TableSpec, parse_tolerance
 
@@ -113,7 +114,7 @@ def compile_table(
         points = spec.points
         intervals = points - 1
         if master_counts % intervals:
-            better = min(_divisors(master_counts), key=lambda d: (abs(d - intervals), d))
+            better = min(divisors(master_counts), key=lambda d: (abs(d - intervals), d))
             raise InputError(
                 f"points {points} gives {intervals} intervals, which do not divide master_counts "
                 f"{master_counts}; use points = k + 1 for a divisor k of {master_counts}, e.g. {better + 1}"
@@ -187,10 +188,10 @@ class _Job:
         for where in positions:
             nearest = round(where)
             if abs(where - nearest) > 1e-6:
-                return _divisors(self.M)  # cannot align: every divisor; the certificate shows the cost
+                return divisors(self.M)  # cannot align: every divisor; the certificate shows the cost
             g = math.gcd(g, nearest % self.M)
         # h must divide g (and M); intervals = M / h
-        return sorted(self.M // h for h in _divisors(g) if h <= MAX_STEP_COUNTS)
+        return sorted(self.M // h for h in divisors(g) if h <= MAX_STEP_COUNTS)
 
     # search -------------------------------------------------------------------------------------
     def search(self, degrees, tol_counts, *, certify, progress):
@@ -329,7 +330,7 @@ class _Job:
             for where, _, _ in self.jumps():
                 base = int(math.floor(where))
                 extra.append(np.arange(base - 2, base + 3, dtype=np.int64))
-            grid = np.unique(np.clip(np.concatenate([sample] + extra), 0, last))
+            grid = _sorted_unique(np.clip(np.concatenate([sample] + extra), 0, last))
             total, how = grid.size, f"{grid.size} master counts: an even sample, every table point and joint"
         worst = {"err": -1.0, "at": 0, "slope": 0.0, "float": 0.0}
         chunk = 1 << 20
@@ -404,6 +405,13 @@ class _Job:
             "wrap_max_error_counts": worst,
             "wrap_max_error_at_master_counts": at,
         }
+
+
+def _sorted_unique(values: np.ndarray) -> np.ndarray:
+    """``np.unique(values)`` by a sort: numpy 2.4's hashing unique takes seconds on the millions
+    of master counts of a cam with many joints (5 per jump), a sort a fraction of that."""
+    values = np.sort(values)
+    return values[np.concatenate([[True], values[1:] != values[:-1]])] if values.size else values
 
 
 # fixed-point format --------------------------------------------------------------------------
@@ -485,6 +493,9 @@ def _basis_peak(degree: int, order: int) -> float:
     return float((np.abs(b[0][order]) + np.abs(b[1][order])).max())
 
 
+# A jump's cost depends on the format and where it sits in its interval only; most joints of a
+# cam of many segments sit on table points (at 0 or 1), so the 4001-point evaluation is shared.
+@functools.lru_cache(maxsize=4096)
 def _jump_cost(degree: int, order: int, at: float, h: float) -> float:
     """Max interpolation error, per unit jump, of psi(x) = (x - x_j)_+^order / order! with x_j
     at fraction ``at`` of an interval of length h (data at x_j take the average of both sides)."""
@@ -547,19 +558,3 @@ def _float_interpolant(table: CamTable, data, counts: np.ndarray) -> np.ndarray:
     for d, values in enumerate(data):
         out += b[0][d] * values[i] + b[1][d] * values[i + 1]
     return out
-
-
-# input helpers ----------------------------------------------------------------------------------
-
-
-def _divisors(n: int) -> list[int]:
-    small, large = [], []
-    d = 1
-    while d * d <= n:
-        if n % d == 0:
-            small.append(d)
-            if d * d != n:
-                large.append(n // d)
-        d += 1
-    return small + large[::-1]
-

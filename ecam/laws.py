@@ -19,15 +19,16 @@ registry of rise laws.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 
 import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
-from .linear import solve_exact
 
-__all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "law", "polynomial_from_boundary"]
+__all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "LawTable", "law", "polynomial_from_boundary"]
 
 _PI = math.pi
 SIDES = ("right", "left")
@@ -169,6 +170,125 @@ class Law:
     def breaks(self) -> tuple[float, ...]:
         """Inner break points of the law (where a piece ends)."""
         return tuple(float(b) for b in self._breaks)
+
+
+class LawTable:
+    """Many laws evaluated in one pass: ``table(which, u, order, left)`` is ``laws[which[k]](u[k],
+    order, side)`` for every k, with the same bits.
+
+    A cam of thousands of segments evaluates each point with its own segment's law; calling each
+    law on its own points costs a pass over all the points per law (quadratic in the segments).
+    Here the pieces of every law are stacked into arrays (breaks, polynomial coefficients padded
+    with zeros above the highest degree, sinusoids), and a point picks its piece's row: the same
+    Horner steps and sinusoids as :meth:`Piece.evaluate`, element by element, so the result is
+    the law's own to the last bit (a leading zero coefficient adds an exact 0 in Horner's rule).
+
+    Parameters
+    ----------
+    laws : sequence of Law
+        The laws, indexed by ``which``.
+    """
+
+    def __init__(self, laws) -> None:
+        self.laws = tuple(laws)
+        pieces = [piece for law_ in self.laws for piece in law_.pieces]
+        counts = np.array([len(law_.pieces) for law_ in self.laws], dtype=np.int64)
+        self.first_piece = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        # Inner breaks, one row per law, NaN past a law's own (NaN compares false: no piece step).
+        self.breaks = np.full((len(self.laws), int(counts.max()) - 1), np.nan)
+        for i, law_ in enumerate(self.laws):
+            self.breaks[i, : len(law_.breaks)] = law_.breaks
+        self._break_columns = [self.breaks[:, k].copy() for k in range(self.breaks.shape[1])]
+        self.piece_start = np.array([piece.start for piece in pieces])
+        self.piece_end = np.array([piece.end for piece in pieces])
+        width = max(1, max(len(piece.poly) for piece in pieces))
+        self._poly = np.zeros((len(pieces), width))
+        for i, piece in enumerate(pieces):
+            self._poly[i, : len(piece.poly)] = piece.poly
+        self._coefficients = {0: self._poly}
+        self._coefficient_columns: dict[int, list[np.ndarray]] = {}
+        waves = max(len(piece.waves) for piece in pieces)
+        self.wave_count = np.array([len(piece.waves) for piece in pieces], dtype=np.int64)
+        self._waves = [piece.waves for piece in pieces]
+        self._omega = np.zeros((len(pieces), waves))
+        self._phase = np.zeros((len(pieces), waves))
+        for i, piece in enumerate(pieces):
+            for k, (_, omega, phase) in enumerate(piece.waves):
+                self._omega[i, k], self._phase[i, k] = omega, phase
+        self._wave_factors: dict[int, np.ndarray] = {}
+        self._ranges: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def coefficients(self, order: int) -> np.ndarray:
+        """Polynomial coefficients of derivative ``order``, one row per piece (lowest first)."""
+        if order not in self._coefficients:
+            below = self.coefficients(order - 1)
+            self._coefficients[order] = below[:, 1:] * np.arange(1, below.shape[1])
+        return self._coefficients[order]
+
+    def _columns(self, order: int) -> list[np.ndarray]:
+        """The coefficients of derivative ``order`` column by column (one array per power)."""
+        if order not in self._coefficient_columns:
+            coefficients = self.coefficients(order)
+            self._coefficient_columns[order] = [coefficients[:, j].copy() for j in range(coefficients.shape[1])]
+        return self._coefficient_columns[order]
+
+    def wave_factors(self, order: int) -> np.ndarray:
+        """``amplitude * omega**order`` of every sinusoid, in Python floats as Piece.evaluate has it."""
+        if order not in self._wave_factors:
+            factors = np.zeros(self._omega.shape)
+            for i, waves in enumerate(self._waves):
+                for k, (amplitude, omega, _) in enumerate(waves):
+                    factors[i, k] = amplitude * omega**order
+            self._wave_factors[order] = factors
+        return self._wave_factors[order]
+
+    def __call__(self, which: np.ndarray, u: np.ndarray, order: int, left=False, snap: bool = False) -> np.ndarray:
+        """d^order s / du^order of law ``which[k]`` at ``u[k]``.
+
+        ``left`` (a bool, or one per point) takes the left limit at an inner break, as
+        ``side="left"`` does. ``snap`` first moves a ``u`` that misses a break of its law by less
+        than 1e-12 onto it, as :meth:`ecam.profile.Segment.evaluate` does for a ``u``
+        recomputed from a master position.
+        """
+        breaks = [column[which] for column in self._break_columns]
+        if snap:
+            for b in breaks:
+                u = np.where(np.abs(u - b) < 1e-12, b, u)
+        piece = self.first_piece[which]
+        for b in breaks:
+            piece = piece + np.where(left, b < u, b <= u)  # np.searchsorted, side left/right
+        return self.pieces_at(piece, u - self.piece_start[piece], order)
+
+    def pieces_at(self, piece: np.ndarray, t: np.ndarray, order: int) -> np.ndarray:
+        """Piece ``piece[k]`` (a row of the stacked pieces) at local ``t[k]``: Piece.evaluate."""
+        out = np.zeros_like(t)
+        for column in reversed(self._columns(order)):  # Horner, from the highest degree
+            out = out * t + column[piece]
+        if self._omega.shape[1]:
+            factors = self.wave_factors(order)
+            for k in range(self._omega.shape[1]):
+                has = self.wave_count[piece] > k
+                if has.any():
+                    p, local = piece[has], t[has]
+                    out[has] = out[has] + factors[p, k] * np.sin(self._omega[p, k] * local + self._phase[p, k]
+                                                                 + order * _PI / 2)
+        return out
+
+    def piece_ranges(self, order: int, samples: int = 1025) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest and largest d^order s/du^order of each piece, sampled at ``samples`` evenly
+        spaced points of the piece, its own polynomial at both ends (one-sided limits)."""
+        if order not in self._ranges:
+            low, high = np.empty(self.piece_start.size), np.empty(self.piece_start.size)
+            grid = np.linspace(0.0, 1.0, samples)
+            rows = max(1, 2**20 // samples)  # a bounded working set however many pieces
+            for first in range(0, self.piece_start.size, rows):
+                piece = np.arange(first, min(first + rows, self.piece_start.size))
+                width = (self.piece_end - self.piece_start)[piece]
+                t = width[:, None] * grid[None, :]
+                values = self.pieces_at(np.repeat(piece, samples), t.ravel(), order).reshape(t.shape)
+                low[piece], high[piece] = values.min(axis=1), values.max(axis=1)
+            self._ranges[order] = (low, high)
+        return self._ranges[order]
 
 
 def _characteristic(law: Law, order: int) -> float:
@@ -395,16 +515,7 @@ def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
         raise validate.fail("end", end, f"{len(start)} values, as many as start")
     k = len(start)
     degree = 2 * k + 1
-    rows, rhs = [], []
-    for u, values in ((0.0, (0.0,) + start), (1.0, (1.0,) + end)):
-        for order, value in enumerate(values):
-            row = [
-                math.factorial(i) / math.factorial(i - order) * u ** (i - order) if i >= order else 0.0
-                for i in range(degree + 1)
-            ]
-            rows.append(row)
-            rhs.append(value)
-    coeffs = solve_exact(rows, rhs)  # the same bits on every machine (ecam.linear)
+    coeffs = _boundary_coefficients(start, end)  # the same bits on every machine
     rest_start = all(v == 0.0 for v in start)
     rest_end = all(v == 0.0 for v in end)
     return Law(
@@ -414,6 +525,49 @@ def polynomial_from_boundary(start, end, name: str = "polynomial") -> Law:
         rest_end,
         f"{degree}th-order polynomial from boundary conditions",
     )
+
+
+def _boundary_coefficients(start: tuple[float, ...], end: tuple[float, ...]) -> list[float]:
+    """Coefficients c_0..c_(2k+1) (lowest first) of the polynomial with s(0) = 0, s(1) = 1 and
+    the derivatives ``start`` at 0 and ``end`` at 1, exact in rationals and rounded once.
+
+    The conditions at 0 give c_0..c_k directly (c_o = s^(o)(0) / o!); those at 1 leave a
+    (k+1) x (k+1) system for the rest whose matrix is the same for every segment, so its exact
+    inverse is computed once: a cam of many polynomial segments costs a few rational products
+    each, not an elimination. The solution is the same rational number as any exact solve
+    (:func:`ecam.linear.solve_exact`), hence the same float.
+    """
+    k = len(start)
+    low = [Fraction(0)] + [Fraction(value) / math.factorial(o) for o, value in enumerate(start, start=1)]
+    at_end = [Fraction(1)] + [Fraction(value) for value in end]
+    residual = [at_end[o] - sum(_falling(i, o) * low[i] for i in range(o, k + 1)) for o in range(k + 1)]
+    inverse = _end_inverse(k)
+    high = [sum(inverse[j][o] * residual[o] for o in range(k + 1)) for j in range(k + 1)]
+    return [float(c) for c in low + high]
+
+
+def _falling(i: int, order: int) -> int:
+    """d^order/du^order of u^i at u = 1: i! / (i - order)!."""
+    return math.factorial(i) // math.factorial(i - order)
+
+
+@functools.cache
+def _end_inverse(k: int) -> tuple[tuple[Fraction, ...], ...]:
+    """Exact inverse of the matrix taking c_(k+1)..c_(2k+1) to s(1), s'(1), .., s^(k)(1)
+    (Gauss-Jordan in rationals; the matrix is regular for every k)."""
+    size = k + 1
+    rows = [[Fraction(_falling(i, o)) for i in range(k + 1, 2 * k + 2)] + [Fraction(int(o == j)) for j in range(size)]
+            for o in range(size)]
+    for col in range(size):
+        pivot = next(r for r in range(col, size) if rows[r][col] != 0)
+        rows[col], rows[pivot] = rows[pivot], rows[col]
+        head = [value / rows[col][col] for value in rows[col]]
+        rows[col] = head
+        for r in range(size):
+            if r != col and rows[r][col] != 0:
+                factor = rows[r][col]
+                rows[r] = [x - factor * y for x, y in zip(rows[r], head)]
+    return tuple(tuple(row[size:]) for row in rows)
 
 
 def _conditions(field: str, values) -> tuple[float, ...]:

@@ -17,15 +17,19 @@ import numpy as np
 
 import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .errors import InputError
-from .laws import DWELL, LAWS, SIDES, Law, law as _law, polynomial_from_boundary
+from .laws import DWELL, LAWS, SIDES, Law, LawTable, law as _law, polynomial_from_boundary
 
-__all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES", "check_span",
-           "check_master_period"]
+__all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES", "MAX_SEGMENTS", "check_span",
+           "check_master_period", "check_segment_count"]
 
 ORDER_NAMES = ("position", "velocity", "acceleration", "jerk")
 MIN_PERIOD, MAX_PERIOD = 1e-9, 1e12  # master units
 MIN_SPAN_FRACTION = 1e-9  # of the master period; 1e-6 (a hard case) is well inside
 MAX_SLAVE = 1e15  # slave units
+# Segments of one cam. Evaluation is linear in them (binary search, every law's pieces stacked),
+# but each segment is a Python object built and checked on its own: 100 000 take seconds to
+# read and check and tens of seconds to compile. Far beyond a drawn cam (a few to a few hundred).
+MAX_SEGMENTS = 100_000
 # Boundary conditions of a polynomial segment, in the order they are solved for (user units:
 # slave units per master unit^k); the names are the cam file's and Segment.polynomial's.
 BOUNDARY_KEYS = ("velocity", "acceleration", "jerk")
@@ -45,10 +49,19 @@ def check_span(span, master_period: float | None = None, field: str = "span") ->
     lost in rounding.
     """
     span = validate.positive(field, _plain(span))
-    if master_period is not None and span < MIN_SPAN_FRACTION * master_period:
+    # A span written at the limit is recomputed from its end positions (end - start) with a
+    # rounding error of up to an ulp of the period: 1e-6 of the limit absorbs that.
+    if master_period is not None and span < MIN_SPAN_FRACTION * master_period * (1 - 1e-6):
         raise validate.fail(field, span, f">= {MIN_SPAN_FRACTION:g} of master_period "
                             f"({MIN_SPAN_FRACTION * master_period:g})")
     return span
+
+
+def check_segment_count(count: int, field: str = "segments") -> int:
+    """A number of segments: at most ``MAX_SEGMENTS``."""
+    if count > MAX_SEGMENTS:
+        raise validate.fail(field, count, f"at most {MAX_SEGMENTS} segments")
+    return count
 
 
 def _plain(value):
@@ -251,10 +264,12 @@ class Segment:
 
     @property
     def span(self) -> float:
+        """Master length of the segment (end - start)."""
         return self.master_end - self.master_start
 
     @property
     def stroke(self) -> float:
+        """Slave change over the segment (end - start), negative for a return."""
         return self.slave_end - self.slave_start
 
     def evaluate(self, x: np.ndarray, order: int, side: str = "right") -> np.ndarray:
@@ -289,13 +304,17 @@ class Discontinuity:
 
     @property
     def jump(self) -> float:
+        """right - left, in slave units per master unit^order."""
         return self.right - self.left
 
     @property
     def severity(self) -> str:
+        """``"error"`` for position, velocity and acceleration, ``"warning"`` for jerk and up."""
         return "warning" if self.order >= 3 else "error"
 
     def to_dict(self) -> dict:
+        """The JSON object of ``ecam check --json``: master, order, quantity, left, right, jump,
+        where, severity."""
         return {
             "master": self.master,
             "order": self.order,
@@ -316,14 +335,17 @@ class CheckReport:
 
     @property
     def errors(self) -> tuple[Discontinuity, ...]:
+        """The position, velocity and acceleration jumps: what makes a cam unusable."""
         return tuple(d for d in self.discontinuities if d.severity == "error")
 
     @property
     def warnings(self) -> tuple[Discontinuity, ...]:
+        """The jerk jumps: allowed, but they excite the mechanics."""
         return tuple(d for d in self.discontinuities if d.severity == "warning")
 
     @property
     def ok(self) -> bool:
+        """True when there are no errors (warnings allowed)."""
         return not self.errors
 
     def continuous(self, order: int) -> bool:
@@ -331,6 +353,7 @@ class CheckReport:
         return all(d.order > order for d in self.discontinuities)
 
     def at(self, master: float, order: int | None = None) -> tuple[Discontinuity, ...]:
+        """The discontinuities at ``master`` (within 1e-9), of one derivative ``order`` if given."""
         return tuple(
             d
             for d in self.discontinuities
@@ -396,6 +419,7 @@ class CamProfile:
         segments = tuple(segments)
         if not segments:
             raise validate.fail("segments", segments, "at least one Segment")
+        check_segment_count(len(segments))
         for i, seg in enumerate(segments):
             if not isinstance(seg, Segment):
                 raise validate.fail(f"segment[{i}]", seg, "a Segment")
@@ -499,6 +523,8 @@ class CamProfile:
         """
         if isinstance(segments, (str, bytes, Mapping)) or not hasattr(segments, "__iter__"):
             raise validate.fail("segments", segments, "a sequence of Segment")
+        if hasattr(segments, "__len__"):
+            check_segment_count(len(segments))  # before placing (solving) them one by one
         master = 0.0
         slave = validate.number("start", _plain(start))  # its range is the first segment's to check
         placed = []
@@ -620,13 +646,10 @@ class CamProfile:
             raise validate.fail("master", float(bad), f"in [0, {validate.show(period)}], the range of a "
                                 "non-periodic cam")
         x = self._snap_to_joints(x)
+        # The segment by binary search, then every point at once (O(points log segments)).
         index = np.searchsorted(self._starts, x, side="right" if side == "right" else "left") - 1
         index = np.clip(index, 0, len(self.segments) - 1)
-        out = np.empty_like(x)
-        for i, seg in enumerate(self.segments):
-            mask = index == i
-            if mask.any():
-                out[mask] = seg.evaluate(x[mask], order, side)
+        out = self._arrays.evaluate(index, x, order, side == "left")
         if turns is not None:  # a net stroke per whole period passed
             out = out + turns * self.net_stroke
         return float(out) if scalar else out
@@ -641,6 +664,49 @@ class CamProfile:
         near = np.where(np.abs(joints[i] - x) <= np.abs(joints[np.minimum(i + 1, len(joints) - 1)] - x),
                         joints[i], joints[np.minimum(i + 1, len(joints) - 1)])
         return np.where(np.abs(near - x) <= 1e-12 * self.master_period, near, x)
+
+    @functools.cached_property
+    def _arrays(self) -> "_SegmentArrays":
+        return _SegmentArrays(self.segments)
+
+    def polyline(self, master, order: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Points that draw derivative ``order`` as one line without bridging a jump.
+
+        Each segment is evaluated on the master positions of ``master`` that fall inside it, its
+        own ends included (so a joint appears twice, once with each segment's value), and a NaN
+        separates one segment's points from the next, which breaks a plotted line there. The
+        cost is linear in the points plus the segments, for cams of many segments.
+
+        Parameters
+        ----------
+        master : array_like
+            Master positions (master units); sorted here, those outside [0, master_period]
+            left out.
+        order : int
+            0 position, 1 velocity, ...
+
+        Returns
+        -------
+        x, y : ndarray
+            Master positions and values (user units), NaN between segments.
+        """
+        order = validate.integer("order", _plain(order), minimum=0)
+        try:
+            x = np.sort(np.asarray(master, dtype=float).ravel())
+        except (TypeError, ValueError):
+            raise validate.fail("master", master, "a number or an array of numbers") from None
+        arrays = self._arrays
+        low = np.searchsorted(x, arrays.master_start, side="left")
+        counts = np.searchsorted(x, arrays.master_end, side="right") - low
+        segment = np.repeat(np.arange(len(self.segments)), counts)
+        first = np.cumsum(counts) - counts  # where each segment's points begin in the output
+        position = np.arange(counts.sum()) - np.repeat(first, counts) + np.repeat(low, counts)
+        slots = np.arange(counts.sum()) + segment  # one NaN slot after each segment
+        xs = np.full(counts.sum() + len(self.segments), np.nan)
+        ys = xs.copy()
+        xs[slots] = x[position]
+        ys[slots] = arrays.evaluate(segment, x[position], order)
+        return xs, ys
 
     @functools.cached_property
     def slave_range(self) -> tuple[float, float]:
@@ -675,7 +741,8 @@ class CamProfile:
     def local_scale(self, order: int, segments) -> float:
         """Magnitude of derivative ``order`` that the given segments can produce:
         the largest |stroke| / span**order among them."""
-        return max(abs(self.segments[i].stroke) / self.segments[i].span ** order for i in segments)
+        scale = self._arrays.local_scale(order)
+        return max(float(scale[i]) for i in segments)
 
     def jumps(self, max_order: int = 3) -> list[Discontinuity]:
         """Every jump of a derivative up to ``max_order``, at every break.
@@ -684,16 +751,27 @@ class CamProfile:
         one-sided values (1e-12 for positions, so a small step high up the int32 range is not
         lost in the absolute position) plus 1e-12 of what the neighbouring segments -- not the
         whole cam -- can produce, so a tiny segment elsewhere hides nothing.
+
+        Every break is evaluated at once per order and side: linear in the segments.
         """
+        breaks = self.breaks()
+        masters = np.array([master for master, _, _ in breaks])
+        first = np.array([neighbours[0] for _, _, neighbours in breaks], dtype=np.int64)
+        last = np.array([neighbours[-1] for _, _, neighbours in breaks], dtype=np.int64)
+        hits = np.zeros((len(breaks), max_order + 1), dtype=bool)
+        sides = {}
+        for order in range(max_order + 1):
+            left = self(masters, order, side="left")
+            right = self(masters, order, side="right")
+            relative = 1e-12 if order == 0 else 1e-9
+            local = self._arrays.local_scale(order)
+            noise = relative * np.maximum(np.abs(left), np.abs(right)) + 1e-12 * np.maximum(local[first], local[last])
+            hits[:, order] = np.abs(right - left) > noise
+            sides[order] = (left, right)
         found = []
-        for master, where, neighbours in self.breaks():
-            for order in range(max_order + 1):
-                left = float(self(master, order, side="left"))
-                right = float(self(master, order, side="right"))
-                relative = 1e-12 if order == 0 else 1e-9
-                noise = relative * max(abs(left), abs(right)) + 1e-12 * self.local_scale(order, neighbours)
-                if abs(right - left) > noise:
-                    found.append(Discontinuity(float(master), order, left, right, where))
+        for k, order in zip(*np.nonzero(hits)):  # break by break, orders rising: the order of the report
+            left, right = sides[order]
+            found.append(Discontinuity(float(masters[k]), int(order), float(left[k]), float(right[k]), breaks[k][1]))
         return found
 
     def check(self, max_order: int = 3) -> CheckReport:
@@ -709,38 +787,131 @@ class CamProfile:
         unit^order), sampled densely on each smooth piece, one-sided at its ends: the value a
         summary shows (:meth:`derivative_bound` is the certified upper bound). A derivative that
         jumps (e.g. the velocity of a law that starts from rest with a step) is counted on both
-        sides, its jump is not."""
+        sides, its jump is not.
+
+        A segment is its law scaled (stroke / span**order, plus its start for positions), so each
+        law's pieces are sampled once (1025 points each) and every segment reads its extremes
+        from there: the cost is in the laws, not in the segments times the samples.
+        """
         order = validate.integer("order", _plain(order), minimum=0)
-        best = 0.0
-        for seg in self.segments:
-            edges = sorted({seg.master_start, seg.master_end,
-                            *(seg.master_start + u * seg.span for u in seg.law.breaks)})
-            for p0, p1 in zip(edges[:-1], edges[1:]):
-                x = np.linspace(p0, p1, 1025)
-                best = max(best, float(np.abs(_piece_values(seg, x, order, p0, p1)).max()))
-        return best
+        arrays = self._arrays
+        low, high = arrays.law_ranges(order)
+        which = arrays.law_index
+        scale = arrays.scale(order)
+        ends = np.stack([scale * low[which], scale * high[which]])
+        if order == 0:
+            ends = ends + arrays.slave_start
+        return max(0.0, float(np.abs(ends).max()))
 
     def derivative_bound(self, order: int, lo: float = 0.0, hi: float | None = None) -> float:
         """Upper bound of |d^order y/dx^order| on [lo, hi] (user units), from dense sampling of
-        each smooth piece with a Lipschitz margin from the next derivative."""
+        each smooth piece with a Lipschitz margin from the next derivative.
+
+        Each smooth piece (a segment between its law's breaks) meeting [lo, hi] is sampled at
+        257 points; the bound is the largest sample plus half a sample step times the largest
+        |d^(order+1) y/dx^(order+1)| there, with a 1 % margin. Every piece of every segment is
+        evaluated in one pass (in blocks of bounded size): linear in the segments.
+        """
         hi = self.master_period if hi is None else hi
+        n = 257
+        segment, p0, p1 = self._arrays.smooth_pieces()
+        a = np.maximum(lo, self._arrays.master_start[segment])
+        b = np.minimum(hi, self._arrays.master_end[segment])
+        c, d = np.maximum(a, p0), np.minimum(b, p1)
+        keep = (b >= a) & (d >= c)
+        segment, p0, p1, c, d = segment[keep], p0[keep], p1[keep], c[keep], d[keep]
         best = 0.0
-        for seg in self.segments:
-            a, b = max(lo, seg.master_start), min(hi, seg.master_end)
-            if b < a:
-                continue
-            edges = [seg.master_start] + [seg.master_start + u * seg.span for u in seg.law.breaks]
-            edges = sorted(set(edges + [seg.master_end]))
-            for p0, p1 in zip(edges[:-1], edges[1:]):
-                c, d = max(a, p0), min(b, p1)
-                if d < c:
-                    continue
-                n = 257
-                x = np.linspace(c, d, n)
-                values = np.abs(_piece_values(seg, x, order, p0, p1))
-                slope = np.abs(_piece_values(seg, x, order + 1, p0, p1)).max()
-                best = max(best, float(values.max()) + slope * (d - c) / (n - 1) / 2 * 1.01)
+        rows = max(1, 2**20 // n)  # a bounded working set however many pieces
+        for first in range(0, segment.size, rows):
+            block = slice(first, first + rows)
+            x = _linspace_rows(c[block], d[block], n)
+            index = np.repeat(segment[block], n)
+            left = (x >= p1[block, None]).ravel()  # the piece's own values at its end: its left limit
+            values = np.abs(self._arrays.evaluate(index, x.ravel(), order, left)).reshape(x.shape).max(axis=1)
+            slope = np.abs(self._arrays.evaluate(index, x.ravel(), order + 1, left)).reshape(x.shape).max(axis=1)
+            bounds = values + slope * (d[block] - c[block]) / (n - 1) / 2 * 1.01
+            best = max(best, float(bounds.max()))
         return best
+
+
+class _SegmentArrays:
+    """The segments of a profile as arrays, for evaluating many points on many segments at once
+    (:meth:`evaluate` is :meth:`Segment.evaluate` per point, to the last bit).
+
+    The scale factors ``stroke / span**order`` are computed in Python floats, as
+    :meth:`Segment.evaluate` computes them, so the products agree bit for bit.
+    """
+
+    def __init__(self, segments) -> None:
+        self.segments = segments
+        self.master_start = np.array([seg.master_start for seg in segments])
+        self.master_end = np.array([seg.master_end for seg in segments])
+        self.span = np.array([seg.span for seg in segments])
+        self.slave_start = np.array([seg.slave_start for seg in segments])
+        laws: dict[int, int] = {}  # id(law) -> its row in the law table
+        unique = []
+        for seg in segments:
+            if id(seg.law) not in laws:
+                laws[id(seg.law)] = len(unique)
+                unique.append(seg.law)
+        self.law_index = np.array([laws[id(seg.law)] for seg in segments], dtype=np.int64)
+        self.laws = LawTable(unique)
+        self._scale: dict[int, np.ndarray] = {}
+        self._local: dict[int, np.ndarray] = {}
+
+    def scale(self, order: int) -> np.ndarray:
+        """``stroke / span**order`` of each segment."""
+        if order not in self._scale:
+            self._scale[order] = np.array([seg.stroke / seg.span**order for seg in self.segments])
+        return self._scale[order]
+
+    def local_scale(self, order: int) -> np.ndarray:
+        """``|stroke| / span**order`` of each segment (see :meth:`CamProfile.local_scale`)."""
+        if order not in self._local:
+            self._local[order] = np.array([abs(seg.stroke) / seg.span**order for seg in self.segments])
+        return self._local[order]
+
+    def evaluate(self, index: np.ndarray, x: np.ndarray, order: int, left=False) -> np.ndarray:
+        """Segment ``index[k]`` at master ``x[k]``: :meth:`Segment.evaluate` with side "left"
+        where ``left`` (a bool, or one per point)."""
+        shape = np.shape(x)
+        index, x = np.ravel(index), np.ravel(x)
+        left = left if np.ndim(left) == 0 else np.ravel(left)
+        u = np.clip((x - self.master_start[index]) / self.span[index], 0.0, 1.0)
+        values = self.scale(order)[index] * self.laws(self.law_index[index], u, order, left, snap=True)
+        if order == 0:
+            values = values + self.slave_start[index]
+        return values.reshape(shape)
+
+    def law_ranges(self, order: int) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest and largest d^order s/du^order of each law over its pieces (sampled)."""
+        low, high = self.laws.piece_ranges(order)
+        return (np.minimum.reduceat(low, self.laws.first_piece),
+                np.maximum.reduceat(high, self.laws.first_piece))
+
+    def smooth_pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every smooth piece of every segment, between its start, its law's breaks and its end,
+        in master units: (segment index, start, end), pieces of zero length left out."""
+        breaks = self.laws.breaks[self.law_index]
+        edges = np.column_stack([self.master_start, self.master_start[:, None] + breaks * self.span[:, None],
+                                 self.master_end])
+        edges.sort(axis=1)  # NaN (a law with fewer breaks) last
+        p0, p1 = edges[:, :-1], edges[:, 1:]
+        real = p0 < p1  # false for NaN and for breaks that round onto each other
+        segment = np.broadcast_to(np.arange(len(self.segments))[:, None], p0.shape)
+        return segment[real], p0[real], p1[real]
+
+
+def _linspace_rows(start: np.ndarray, stop: np.ndarray, num: int) -> np.ndarray:
+    """``np.linspace(start[i], stop[i], num)`` as row i, with numpy's own arithmetic (k * step +
+    start, the last point set to ``stop``)."""
+    step = (stop - start) / (num - 1)
+    rows = np.arange(num, dtype=float)[None, :] * step[:, None] + start[:, None]
+    flat = step == 0  # numpy's branch for a step that underflows: k / div * delta
+    if flat.any():
+        rows[flat] = (np.arange(num, dtype=float) / (num - 1))[None, :] * (stop - start)[flat, None] + start[flat, None]
+    rows[:, -1] = stop
+    return rows
 
 
 # The settings of a cam file's [table] (ecam.table_spec.TableSpec checks their values).
@@ -780,20 +951,6 @@ def _toml_value(field: str, value) -> str:
                 out.append(char)
         return '"' + "".join(out) + '"'
     raise validate.fail(field, value, "a string, a number or true/false (a TOML value)")
-
-
-def _piece_values(seg: Segment, x: np.ndarray, order: int, p0: float, p1: float) -> np.ndarray:
-    """Derivative values of one smooth piece of a segment, one-sided at its own ends."""
-    out = np.empty_like(x)
-    inner = (x > p0) & (x < p1)
-    out[inner] = seg.evaluate(x[inner], order, "right")
-    at_start = x <= p0
-    at_end = x >= p1
-    if at_start.any():
-        out[at_start] = seg.evaluate(x[at_start], order, "right")
-    if at_end.any():
-        out[at_end] = seg.evaluate(x[at_end], order, "left")
-    return out
 
 
 def dwell(master_start: float, master_end: float, slave: float, name: str = "dwell") -> Segment:

@@ -50,6 +50,8 @@ def parse_tolerance(tolerance, field: str = "tolerance", slave_unit: str | None 
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
         raise validate.fail(field, tolerance, "a number > 0 in slave units or a string like '2 counts' or "
                             "'0.01 mm' (the cam's slave unit)")
+    if value > validate.MAX_MAGNITUDE:  # in counts (x slave_counts_per_unit <= 1e12) it must stay finite
+        raise validate.fail(field, tolerance, f"at most {validate.MAX_MAGNITUDE:g}")
     return float(value), in_counts
 
 

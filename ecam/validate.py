@@ -14,6 +14,7 @@ Both derive from ``ValueError``.
 
 from __future__ import annotations
 
+import decimal
 import math
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
@@ -32,7 +33,11 @@ def show(value) -> str:
     if isinstance(value, float) and math.isfinite(value):
         text = f"{value:.12g}"
     elif isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**15:
-        text = f"{value:.6g}"
+        try:
+            text = f"{value:.6g}"
+        except OverflowError:  # past float's range: the same form, from the exact integer
+            mantissa, _, exponent = format(decimal.Decimal(value), ".6g").partition("e")
+            text = f"{mantissa.rstrip('0').rstrip('.')}e{exponent}"
     else:
         text = repr(value)
     return text if len(text) < 60 else text[:57] + "..."
@@ -170,7 +175,10 @@ class Fields:
         if allowed is not None:
             for key in raw:
                 if key not in allowed:
-                    raise self.error(f"{self.name(key)}: unknown field; expected one of "
+                    # A key is the user's text: shown quoted and cut where it is not a plain name
+                    # (a newline in it would make the message two lines).
+                    written = key if isinstance(key, str) and key.isidentifier() and len(key) < 60 else show(key)
+                    raise self.error(f"{self.name(written)}: unknown field; expected one of "
                                      f"{', '.join(sorted(allowed))}")
 
     def error(self, message: str) -> CamFileError:

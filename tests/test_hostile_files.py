@@ -126,3 +126,99 @@ def test_poly5_boundary_that_overflows_when_normalized(tmp_path):
                     'span = 1e100\nstroke = 1e-100\nstart_acceleration = 1e100\n')
     assert_one_line(run_cli("check", path), "segment[0].start_acceleration: 1e+100 should be finite and at most "
                     "1e+150 once normalized (value * span^2 / stroke; span 1e+100, stroke 1e-100)")
+
+
+# --- found by the fuzz (tests/test_hostile_fuzz.py), in this process ---------------------------
+def one_line(*args):
+    """``ecam ARGS`` in this process: (exit status, the one stderr line); no exception escapes."""
+    import contextlib
+    import io
+
+    from ecam.app.cli import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        status = main([str(a) for a in args])
+    lines = err.getvalue().splitlines()
+    assert status == 2 and len(lines) == 1, err.getvalue()
+    return lines[0]
+
+
+GOOD_CAM = 'master_period = 360.0\n[[segment]]\nlaw = "cycloidal"\nspan = 180.0\nstroke = 1.0\n' \
+           '[[segment]]\nlaw = "cycloidal"\nspan = 180.0\nstroke = -1.0\n'
+
+
+def test_a_directory_is_refused_not_opened(tmp_path):
+    assert one_line("check", tmp_path).endswith("should be a regular file")
+
+
+def test_a_path_with_a_nul_is_one_error():
+    import ecam
+
+    with pytest.raises(ecam.CamFileError, match="should be a path without NUL characters"):
+        ecam.load_cam("cam\x00.toml")
+
+
+def test_integers_past_float_and_past_4300_digits(tmp_path):
+    path = tmp_path / "big.toml"
+    path.write_text(f"name = {10**400}\n" + GOOD_CAM)
+    assert one_line("check", path).endswith("name: 1e+400 should be a string")
+    path.write_text("x = " + "9" * 5000 + "\n")
+    assert "Exceeds the limit (4300 digits)" in one_line("check", path)
+
+
+def test_a_hostile_key_is_shown_quoted_and_cut(tmp_path):
+    path = tmp_path / "keys.toml"
+    path.write_text('"a\\nb" = 1\n' + GOOD_CAM)
+    assert "'a\\nb': unknown field" in one_line("check", path)
+    path.write_text(f'"{"x" * 300}" = 1\n' + GOOD_CAM)
+    line = one_line("check", path)
+    assert "...: unknown field" in line and len(line) < 300
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--speed", "1e120"], "--speed: '1e120' should be at most 1e+30 deg/s"),
+    (["--speed", "1e300 rpm"], "--speed: '1e300 rpm' should be at most 1e+30 deg/s"),
+])
+def test_check_speed_range(tmp_path, args, message):
+    path = tmp_path / "cam.toml"
+    path.write_text(GOOD_CAM)
+    assert one_line("check", path, *args).endswith(message)
+
+
+def test_tolerance_range_keeps_counts_finite(tmp_path):
+    path = tmp_path / "cam.toml"
+    path.write_text(GOOD_CAM)
+    assert one_line("compile", path, "--tolerance", "1e308", "-o", tmp_path).endswith(
+        "tolerance: '1e308' should be at most 1e+150")
+    assert one_line("export", path, "--to", "csv", "--tolerance", "1e200 counts", "-o", tmp_path / "e.csv").endswith(
+        "tolerance: '1e200 counts' should be at most 1e+150")
+
+
+def test_a_long_format_list_is_cut(tmp_path):
+    path = tmp_path / "cam.toml"
+    path.write_text(GOOD_CAM)
+    line = one_line("compile", path, "--points", "9", "--format", "x" * 1000, "-o", tmp_path)
+    assert "--format 'xxx" in line and len(line) < 200
+
+
+def test_more_segments_than_the_limit_in_a_file(tmp_path, monkeypatch):
+    import ecam.profile
+
+    monkeypatch.setattr(ecam.profile, "MAX_SEGMENTS", 3)
+    path = tmp_path / "cam.toml"
+    path.write_text("master_period = 4.0\n" + '[[segment]]\nlaw = "dwell"\nspan = 1.0\n' * 4)
+    assert one_line("check", path).endswith("segment: 4 should be at most 3 segments")
+
+
+def test_a_span_written_at_its_limit_is_accepted(tmp_path):
+    """1e-9 of the period as written passes, though end - start rounds it a little below."""
+    import ecam
+
+    path = tmp_path / "cam.toml"
+    path.write_text('master_period = 1.0\n[[segment]]\nlaw = "dwell"\nspan = 0.5\n'
+                    '[[segment]]\nlaw = "cycloidal"\nspan = 1e-9\nstroke = 1.0\n'
+                    '[[segment]]\nlaw = "cycloidal"\nspan = 1e-9\nstroke = -1.0\n'
+                    '[[segment]]\nlaw = "dwell"\nend = 1.0\n')
+    profile = ecam.load_cam(path)
+    assert profile.segments[1].span < 1e-9 and profile.check().ok

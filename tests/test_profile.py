@@ -145,3 +145,163 @@ def test_a_tiny_segment_hides_no_jump_elsewhere():
                      ("harmonic", 120.0 - tiny, -0.5), ("cycloidal", tiny, -0.5)])
     accel = {round(d.master, 6) for d in profile.check().errors if d.order == 2}
     assert {60.0, 180.0, 240.0, round(360.0 - tiny, 6)} <= accel
+
+
+# --- cost in the number of segments (issue 14) ----------------------------------------------------
+# Evaluation finds each point's segment by binary search and evaluates every point at once (the
+# laws' pieces stacked in a LawTable); these tests hold that without a clock: they count what the
+# work touches, which is the same on every machine.
+from ecam.compile import compile_table  # noqa: E402
+from ecam.laws import LAWS, LawTable, polynomial_from_boundary  # noqa: E402
+from ecam.linear import solve_exact  # noqa: E402
+from ecam.profile import MAX_SEGMENTS  # noqa: E402
+
+
+def many_segments(count):
+    """A cam of ``count`` segments (a multiple of 4), one master unit each: dwell, a rise, dwell,
+    a return; every other rise a poly5 from rest to rest (a law of its own per segment)."""
+    segments = []
+    for k in range(count // 4):
+        rise = (Segment.polynomial(0.0, 1.0, 0.0, 1.0) if k % 2
+                else Segment.from_span(1.0, 1.0, "cycloidal"))
+        segments += [Segment.from_span(1.0), rise, Segment.from_span(1.0),
+                     Segment.from_span(1.0, -1.0, "modified_sine")]
+    return CamProfile.from_segments(segments)
+
+
+def python_calls(work):
+    """How many Python-level calls (functions, builtins, numpy entry points) ``work()`` makes: a
+    deterministic measure of its cost. A loop over every segment per evaluated point, or per
+    joint, shows as calls growing with the square of the segments."""
+    import sys
+
+    count = 0
+
+    def tally(frame, event, arg):
+        nonlocal count
+        if event in ("call", "c_call"):
+            count += 1
+
+    previous = sys.getprofile()
+    sys.setprofile(tally)
+    try:
+        work()
+    finally:
+        sys.setprofile(previous)
+    return count
+
+
+def everything_check_and_compile_do(profile):
+    """What `ecam check` and `ecam compile` ask of a profile."""
+    profile.check()
+    for order in (1, 2, 3):
+        profile.peak(order)
+    profile.slave_range
+    profile(np.linspace(0.0, profile.master_period, 4097), 1)
+    segments = len(profile.segments)
+    compile_table(profile, interp="cubic", points=4 * segments + 1, master_counts=16 * segments)
+
+
+def test_check_and_compile_cost_is_linear_in_the_segments():
+    """Four times the segments, at most about four times the calls (3.5 measured; the quadratic
+    version before issue 14, whose every evaluation looped over all segments, made 9.9 times as
+    many)."""
+    small = python_calls(lambda: everything_check_and_compile_do(many_segments(64)))
+    large = python_calls(lambda: everything_check_and_compile_do(many_segments(256)))
+    assert large / small < 4.5, (small, large)
+
+
+def test_each_point_is_evaluated_once_by_its_own_segment(monkeypatch):
+    """N points on M segments: one stacked evaluation of exactly N values, whatever M; check()
+    evaluates every break once per order and side."""
+    profile = many_segments(400)
+    evaluated = []
+    original = LawTable.pieces_at
+
+    def counting(self, piece, t, order):
+        evaluated.append(np.size(t))
+        return original(self, piece, t, order)
+
+    monkeypatch.setattr(LawTable, "pieces_at", counting)
+    x = np.linspace(0.0, profile.master_period, 1001)
+    profile(x, 2)
+    assert evaluated == [1001]
+    evaluated.clear()
+    report = profile.check()
+    breaks = len(profile.breaks())
+    assert evaluated == [breaks] * 8  # orders 0..3, left and right: each break once
+    assert report.ok and len(report.warnings) > 0
+
+
+def test_stacked_laws_give_the_laws_own_bits():
+    """The LawTable (every law's pieces in arrays) is each law's own evaluation to the last bit,
+    at random points, on the breaks and at the ends, from both sides, for derivatives 0..7: the
+    golden tables depend on it."""
+    rng = np.random.default_rng(14)
+    laws = [*LAWS.values(), ecam.law("dwell"), polynomial_from_boundary((0.3, -2.0), (1.5, 4.0)),
+            polynomial_from_boundary((0.0, 0.0, 1.0), (2.0, 0.0, -3.0))]
+    table = LawTable(laws)
+    for which, law in enumerate(laws):
+        u = np.concatenate([rng.random(200), law.breaks, [0.0, 1.0], np.nextafter(law.breaks, 0.0)])
+        for order in range(8):
+            for side in ("right", "left"):
+                got = table(np.full(u.size, which), u, order, side == "left")
+                want = law(u, order, side)
+                assert np.array_equal(got.view(np.int64), want.view(np.int64)), (law.name, order, side)
+
+
+def test_profile_evaluation_gives_each_segments_own_bits(drrd, msine):
+    """profile(x) is the containing segment's own Segment.evaluate, bit for bit, inside every
+    segment, on its law's breaks, and one-sided at its ends."""
+    for profile in (drrd, msine, many_segments(16)):
+        for seg in profile.segments:
+            inside = np.concatenate([np.linspace(seg.master_start, seg.master_end, 35)[1:-1],
+                                     [seg.master_start + b * seg.span for b in seg.law.breaks]])
+            for order in range(6):
+                for side in ("right", "left"):
+                    got, want = profile(inside, order, side), seg.evaluate(inside, order, side)
+                    assert np.array_equal(got.view(np.int64), want.view(np.int64)), (seg.label, order, side)
+            ends = [(seg.master_start, "right", 0.0), (seg.master_end, "left", 1.0)]
+            for x, side, u in ends:
+                if profile.periodic or 0.0 < x < profile.master_period:
+                    for order in range(4):
+                        assert profile(x, order, side) == seg.at(u, order)
+
+
+@given(st.lists(st.one_of(st.just(0.0), st.floats(-1e6, 1e6), st.floats(-1e-6, 1e-6)), min_size=4, max_size=6)
+       .filter(lambda v: len(v) != 5))
+def test_polynomial_coefficients_are_the_exact_solution(values):
+    """The closed-form rational solve of a poly5/poly7 gives the bits of a full exact elimination
+    (ecam.linear.solve_exact) of the boundary-condition system."""
+    import math
+
+    k = len(values) // 2
+    start, end = tuple(values[:k]), tuple(values[k:])
+    degree = 2 * k + 1
+    rows, rhs = [], []
+    for u, conditions in ((0.0, (0.0,) + start), (1.0, (1.0,) + end)):
+        for order, value in enumerate(conditions):
+            rows.append([math.factorial(i) / math.factorial(i - order) * u ** (i - order) if i >= order else 0.0
+                         for i in range(degree + 1)])
+            rhs.append(value)
+    assert polynomial_from_boundary(start, end).pieces[0].poly == tuple(solve_exact(rows, rhs))
+
+
+def test_more_segments_than_the_limit_is_one_clear_error():
+    dwell = Segment.from_span(1.0)
+    with pytest.raises(ecam.InputError, match=f"segments: {MAX_SEGMENTS + 1} should be at most {MAX_SEGMENTS}"):
+        CamProfile.from_segments([dwell] * (MAX_SEGMENTS + 1))
+
+
+def test_polyline_draws_each_segment_on_its_own_points(drrd):
+    """The plot line: every segment on the positions inside it (its ends included) with its own
+    Segment.evaluate values, a NaN after each, nothing outside the period."""
+    x = np.concatenate([np.linspace(-10.0, 370.0, 381), drrd.joints()])
+    xs, ys = drrd.polyline(x, 2)
+    pieces = np.split(np.arange(xs.size), np.nonzero(np.isnan(xs))[0] + 1)
+    assert len(pieces) == len(drrd.segments) + 1 and pieces[-1].size == 0
+    for seg, piece in zip(drrd.segments, pieces):
+        inside = np.sort(x[(x >= seg.master_start) & (x <= seg.master_end)])
+        assert np.array_equal(xs[piece[:-1]], inside)
+        assert np.array_equal(ys[piece[:-1]], seg.evaluate(inside, 2, "right"))
+        assert np.isnan(ys[piece[-1]])

@@ -53,7 +53,9 @@ def test_the_methods_the_example_calls_have_docstrings():
                (ecam.CamProfile, "to_toml"), (ecam.Segment, "from_span"),
                (ecam.CamTable, "lookup"), (ecam.Certificate, "max_error_counts"),
                (hil_sim.Report, "to_text"), (hil_sim.Report, "passed"),
-               (hil_sim.Report, "failed"), (hil_sim.Check, "line")]
+               (hil_sim.Report, "failed"), (hil_sim.Check, "line"),
+               (ecam.CheckReport, "ok"), (ecam.CheckReport, "errors"),
+               (ecam.Discontinuity, "to_dict")]
     for owner, name in methods:
         assert f".{name}" in example, f"{name} is no longer in the example: update this list"
         assert getattr(owner, name).__doc__, f"{owner.__name__}.{name} has no docstring"

@@ -11,7 +11,7 @@ from ecam.atomic_files import write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
 from ecam.errors import InputError
-from ecam.export import EXPORTERS, identifier, plain
+from ecam.export import EXPORTERS, identifier, json_safe
 from ecam.laws import LAWS
 from ecam.plot import plot_profile
 
@@ -42,6 +42,11 @@ def _finite(value):
 
 
 # --- check / plot ---------------------------------------------------------------------------------
+# The fastest master --speed takes (master units per second): far above any machine, and low
+# enough that the peaks at that speed stay finite for every cam ecam accepts. The largest jerk a
+# cam can have is about 1e188 per master unit^3 (a poly5/poly7 velocity condition of 1e150 over
+# a span of 1e-18, the shortest: 1e-9 of a 1e-9 period), and 1e188 * (1e30)^3 is finite.
+MAX_SPEED = 1e30
 # Master units a speed in rpm can be given for: units per revolution.
 _PER_REVOLUTION = {"deg": 360.0, "rad": 2 * math.pi, "rev": 1.0, "turn": 1.0}
 _PER_MINUTE_WORDS = ("periods/min", "cycles/min", "cuts/min", "strokes/min", "/min")
@@ -75,7 +80,10 @@ def parse_speed(text, profile) -> tuple[float, str]:
     else:
         raise validate.fail("--speed", text, forms + (f" ('rpm' needs a master in deg, rad or rev, not {unit})"
                                                       if word == "rpm" else ""))
-    return validate.number("--speed", value * factor), f"{value:g} {word}".strip()
+    speed = value * factor
+    if speed > MAX_SPEED:
+        raise validate.fail("--speed", text, f"at most {MAX_SPEED:g} {unit}/s")
+    return speed, f"{value:g} {word}".strip()
 
 
 def check_summary(profile, speed=None) -> dict:
@@ -97,7 +105,7 @@ def cmd_check(args) -> int:
     speed = None if getattr(args, "speed", None) is None else parse_speed(args.speed, profile)[0]
     report = profile.check()
     if args.json:
-        print(json.dumps(plain({
+        print(json.dumps(json_safe({
             "cam": profile.name, "ok": report.ok, "errors": len(report.errors), "warnings": len(report.warnings),
             "discontinuities": [d.to_dict() for d in report.discontinuities], **check_summary(profile, speed),
         }), indent=1))
@@ -154,10 +162,10 @@ def cmd_compile(args) -> int:
     profile = load_cam(args.cam)
     formats = [f.strip() for f in args.format.split(",") if f.strip()]
     if not formats:
-        raise InputError(f"--format {args.format!r} should name at least one of c, bin, csv, json")
+        raise InputError(f"--format {validate.show(args.format)} should name at least one of {', '.join(EXPORTERS)}")
     for f in formats:
         if f not in EXPORTERS:
-            raise InputError(f"--format {f!r} should be one of {', '.join(EXPORTERS)}")
+            raise InputError(f"--format {validate.show(f)} should be one of {', '.join(EXPORTERS)}")
     table = compile_table(
         profile, interp=args.interp, points=args.points, tolerance=args.tolerance,
         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
@@ -184,7 +192,8 @@ def write_table(table, name, directory: Path, formats) -> list[str]:
         directory.mkdir(parents=True, exist_ok=True)
         write_files(contents)
     except OSError as exc:
-        raise InputError(f"output directory {str(directory)!r} cannot be written: {exc.strerror or exc}") from None
+        raise InputError(f"output directory {validate.show(str(directory))} cannot be written: "
+                         f"{exc.strerror or exc}") from None
     return [str(path) for path in contents]
 
 
@@ -197,7 +206,7 @@ def table_summary(table, files) -> dict:
             "max_slope_error_counts_per_count", "tolerance_units", "net_stroke_units", "net_stroke_counts",
             "net_stroke_fraction", "net_stroke_exact", "net_stroke_residual_counts", "format_version",
             "wrap_evaluated", "wrap_max_error_counts", "wrap_max_error_at_master_counts"]
-    out = {k: plain(r[k]) for k in keys if k in r}
+    out = {k: json_safe(r[k]) for k in keys if k in r}
     out["files"] = files
     return out
 

@@ -37,9 +37,6 @@ __all__ = [
 # Deprecated alias, kept for one release: this was ``ecam.export.Certificate``, which shadowed
 # ecam.Certificate (the table's certificate) under ``from ecam.export import *``. Not in __all__.
 Certificate = ExportCertificate
-# Old name of json_safe, kept only until ecam/app/cam_commands.py imports json_safe (not in
-# __all__, not in the DESIGN contract): remove it then.
-plain = json_safe
 
 # format name -> module (imported lazily, as python-can imports its interfaces)
 VENDOR_FORMATS = {

@@ -32,6 +32,12 @@ def _positive(field: str, value: object) -> float:
     return validate.positive(field, plain(value))
 
 
+def _first_line(error: Exception) -> str:
+    """A library's message as one line (ruckig writes several, the first blank)."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return lines[0] if lines else type(error).__name__
+
+
 class _Segment:
     """One offline ruckig trajectory, planned in scaled units and read back in real ones.
 
@@ -60,7 +66,9 @@ class _Segment:
         try:
             result = Ruckig(1).calculate(parameters, self.trajectory)
         except RuckigError as error:
-            raise SimulationError(f"ruckig rejected the {what}: {error}") from error
+            raise SimulationError(f"ruckig rejected the {what}: {_first_line(error)}") from None
+        except ValueError as error:  # a result code outside ruckig's own Result enum
+            raise SimulationError(f"ruckig failed on the {what}: {_first_line(error)}") from None
         if result not in (Result.Working, Result.Finished):
             raise SimulationError(f"ruckig result {result.name} for the {what}, "
                                   f"expected Working or Finished")

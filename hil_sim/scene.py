@@ -89,7 +89,7 @@ from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
-from ecam.validate import Fields, choice, fail, show
+from ecam.validate import Fields, choice, fail, number, show
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
@@ -111,15 +111,27 @@ GAIN_KEYS = ("position_kp", "velocity_kp", "velocity_ki", "velocity_feedforward"
              "acceleration_feedforward", "notch_hz", "notch_width", "notch_depth_db")
 
 # Physical range of each mechanics field [SI]: wide enough for a watch motor and a press, narrow
-# enough that products of them (torques, energies, the plant matrices) stay finite in float64.
-# Upper bounds only: the lower bounds (0, exclusive where the plant needs it) are
-# ecam.mechanics.Mechanics' own checks.
+# enough that products and quotients of them (torques, energies, the plant matrices, the reflected
+# inertia) stay finite in float64. The lower bounds of the fields that divide are positive; the
+# rules between fields are ecam.mechanics.Mechanics' own checks.
 MECHANICS_RANGES = {
     "motor_inertia": 1e4, "load_inertia": 1e6, "gear_ratio": 1e4, "gear_efficiency": 1.0,
     "motor_damping": 1e6, "load_damping": 1e8, "coupling_stiffness": 1e12,
     "coupling_damping": 1e8, "coupling_rated_torque": 1e8, "coupling_max_torque": 1e8,
     "motor_torque_limit": 1e6,
 }
+MECHANICS_MINIMA = {
+    "motor_inertia": 1e-10, "gear_ratio": 1e-4, "gear_efficiency": 0.01,
+    "coupling_stiffness": 1e-6,
+}
+#: Master speed magnitudes ([master] speed, master units/s, or speed_rpm).
+MIN_MASTER_SPEED, MAX_MASTER_SPEED = 1e-9, 1e12
+#: A load inertia is 0 (none) or at least this [kg m^2].
+MIN_LOAD_INERTIA = 1e-12
+#: Slave units per load radian: from a micrometre per radian to a kilometre.
+SLAVE_UNITS_PER_RADIAN_RANGE = (1e-9, 1e9)
+#: Master positions of a check window: the master period's own range (ecam cam files).
+MAX_WINDOW_POSITION = 1e12
 
 # Ranges of the effect fields [SI]: finite arithmetic, and a backlash of at most half a turn.
 EFFECT_RANGES = {"gear_backlash": math.pi, "motor_coulomb_friction": 1e6,
@@ -412,9 +424,10 @@ def _master(top: Fields) -> MasterSpec:
             raise raw.error(f"{raw.name(key)}: does not apply to profile {profile!r}; expected "
                             f"one of {', '.join(sorted(allowed)) or 'none'}")
     key = "speed" if "speed" in raw else "speed_rpm"
-    speed = raw.number(key)
-    if speed == 0.0:
-        raise raw.error(f"{raw.name(key)}: {show(speed)} should be non-zero")
+    speed = raw.number(key, minimum=-MAX_MASTER_SPEED, maximum=MAX_MASTER_SPEED)
+    if abs(speed) < MIN_MASTER_SPEED:
+        raise raw.error(f"{raw.name(key)}: {show(speed)} should be non-zero, at least "
+                        f"{MIN_MASTER_SPEED:g} in magnitude")
     spec = {key: speed, "profile": profile,
             "lead_cycles": raw.integer("lead_cycles", default=1, minimum=0, maximum=MAX_LEAD_CYCLES)}
     if profile == "start_stop":
@@ -461,9 +474,14 @@ def _cam_file(raw: Fields, written: str, base: Path) -> Path:
     name = raw.name("file")
     try:
         file = (base / written).resolve()
-    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python 3.11)
-        raise raw.error(f"{name}: {show(written)} cannot be resolved: {exc}") from None
-    if not file.is_file():
+        exists, regular = file.exists(), file.is_file()
+    except (OSError, RuntimeError, ValueError) as exc:  # RuntimeError: a symlink loop (3.11)
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise raw.error(f"{name}: {show(written)} cannot be resolved: {reason[:120]}") from None
+    if exists and not regular:
+        raise raw.error(f"{name}: {show(written)} should be a regular file (resolved to "
+                        f"{show(str(file))})")
+    if not regular:
         # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
         # also ecam's built-in cams, found by file name.
         built_in = CAMS_DIR / Path(written).name
@@ -520,13 +538,17 @@ def _mechanics(top: Fields) -> MechanicsSpec:
                                   *MECHANICS_FIELDS}, required=True)
     values = []
     for key in MECHANICS_KEYS:
-        value = raw.number(key, required=key == "motor_inertia", maximum=MECHANICS_RANGES[key])
+        value = raw.number(key, required=key == "motor_inertia", maximum=MECHANICS_RANGES[key],
+                           minimum=MECHANICS_MINIMA.get(key))
+        if key == "load_inertia" and value is not None and 0.0 < value < MIN_LOAD_INERTIA:
+            raise raw.error(f"{raw.name(key)}: {show(value)} should be 0 or >= {MIN_LOAD_INERTIA:g}")
         if value is not None:
             values.append((key, value))
     effects = tuple((key, raw.number(key, minimum=0.0, maximum=EFFECT_RANGES[key]))
                     for key in MECHANICS_FIELDS if key in raw)
     spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=raw.number(
-        "slave_units_per_load_radian", default=1.0, minimum=0.0, strict=True), effects=effects)
+        "slave_units_per_load_radian", default=1.0, minimum=SLAVE_UNITS_PER_RADIAN_RANGE[0],
+        maximum=SLAVE_UNITS_PER_RADIAN_RANGE[1]), effects=effects)
     with raw.calling():  # the lower bounds and the rules between fields are Mechanics' own
         spec.build()
     return spec
@@ -578,11 +600,12 @@ def _window(raw: Fields, key: str) -> tuple[float, float] | None:
     value = raw.get(key)
     name = raw.name(key)
     if (not isinstance(value, list) or len(value) != 2
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                       and math.isfinite(v) for v in value)):
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
         raise raw.error(f"{name}: {show(value)} should be [start, end] in master units (two "
-                        "finite numbers; end < start spans the seam)")
-    start, end = float(value[0]), float(value[1])
+                        "numbers; end < start spans the seam)")
+    with raw.calling():
+        start, end = (number(f"{key}[{i}]", v, minimum=-MAX_WINDOW_POSITION,
+                             maximum=MAX_WINDOW_POSITION) for i, v in enumerate(value))
     if start == end:
         raise raw.error(f"{name}: {show(value)} should have start != end")
     return start, end

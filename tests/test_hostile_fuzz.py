@@ -251,12 +251,6 @@ SCENE_BASES = [scene_base(path) for path in sorted(SCENES.glob("*.toml"))]
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="hil_sim defects found by this fuzz and reported to the lead (issue 14): "
-                   "ruckig's multi-line messages passed on as the error (hil_sim/master.py), ruckig result codes "
-                   "outside its Result enum (hil_sim/master.py:61), zero lower bounds of mechanics fields "
-                   "(ecam/mechanics.py, hil_sim/plant.py, hil_sim/feedback.py), cam.file with a NUL or a too "
-                   "long name (hil_sim/scene.py _cam_file), limits.tracking_window unbounded "
-                   "(hil_sim/scene.py _window). Remove this mark when they are fixed.")
 @settings(max_examples=25, **FUZZ)
 @given(st.data())
 def test_hostile_scene_files_get_one_line(workdir, data):
@@ -271,3 +265,34 @@ def test_hostile_scene_files_get_one_line(workdir, data):
         patch.setattr(hil_sim.scene, "MAX_CYCLES", FUZZ_MAX_CYCLES)
         patch.setattr(hil_sim.rig.plan, "MAX_CYCLES", FUZZ_MAX_CYCLES)
         assert_clean(["sim", path, "--json"], text)
+
+
+# The scene defects this fuzz found, each as it was found (one line and exit 2, naming the field).
+FOUND = [
+    ("soft_coupling", ("cam", "file"), "a\x00b", "cam.file: 'a\\x00b' cannot be resolved"),
+    ("soft_coupling", ("cam", "file"), "x" * 5000, "cannot be resolved: [Errno 36]"),
+    ("soft_coupling", ("cam", "file"), "/dev/zero", "cam.file: '/dev/zero' should be a regular file"),
+    ("rotary_knife", ("limits", "tracking_window", 1), 10**400, "limits.tracking_window[1]: 1e+400"),
+    ("rotary_knife", ("limits", "tracking_window", 1), 1.7976931348623157e308, "should be <= 1e+12"),
+    ("soft_coupling", ("mechanics", "gear_ratio"), 1e-300, "mechanics.gear_ratio: 1e-300 should be >= 0.0001"),
+    ("soft_coupling", ("mechanics", "load_inertia"), 5e-324, "mechanics.load_inertia: 4.94065645841e-324 should be 0 or >="),
+    ("soft_coupling", ("mechanics", "motor_inertia"), 5e-324, "mechanics.motor_inertia: 4.94065645841e-324 should be >="),
+    ("rotary_knife", ("mechanics", "slave_units_per_load_radian"), 5e-324, "mechanics.slave_units_per_load_radian"),
+    ("rotary_knife", ("master", "max_acceleration"), 5e-324, "master.profile 'start_stop': no ramp to 720 deg/s"),
+    ("cam_in", ("master", "slave_start"), -151999.0, "master.profile 'cam_in': no cam-in"),
+    ("cam_in", ("master", "speed_rpm"), 5e-324, "master.speed_rpm: 4.94065645841e-324 should be non-zero"),
+]
+
+
+@pytest.mark.parametrize("name, path, value, expected", FOUND, ids=lambda v: str(v)[:30])
+def test_scene_defects_the_fuzz_found_are_one_line(workdir, name, path, value, expected):
+    document = copy.deepcopy(next(b for b in SCENE_BASES if b["name"] == name))
+    node = document
+    for step in path[:-1]:
+        node = node[step]
+    node[path[-1]] = value
+    scene = workdir / "found.toml"
+    scene.write_text(to_toml(document))
+    status, out, err, runtime_warnings = run(["sim", scene, "--json"])
+    assert status == 2 and len(err.splitlines()) == 1 and not runtime_warnings, err
+    assert expected in err, err

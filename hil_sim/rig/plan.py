@@ -162,8 +162,16 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
     """The master's motion in counts (and, for a cam-in, the slave's approach plan, else None)."""
     spec = scene.master
     if spec.profile == "start_stop":
-        return StartStop(speed, spec.max_acceleration * per_unit, spec.max_jerk * per_unit,
-                         start_s=spec.start_s, stop_s=spec.stop_s), None
+        try:
+            return StartStop(speed, spec.max_acceleration * per_unit, spec.max_jerk * per_unit,
+                             start_s=spec.start_s, stop_s=spec.stop_s), None
+        except (InputError, SimulationError) as exc:
+            unit = cam.profile.master_unit
+            raise SimulationError(
+                f"master.profile 'start_stop': no ramp to {speed / per_unit:.6g} {unit}/s with "
+                f"master.max_acceleration {spec.max_acceleration:.6g} {unit}/s^2 and "
+                f"master.max_jerk {spec.max_jerk:.6g} {unit}/s^3: "
+                f"{str(exc).splitlines()[0] if str(exc) else exc!r}") from None
     if spec.profile == "cam_in":
         profile, scale = cam.profile, cam.scale
 
@@ -182,7 +190,7 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
                 f"{spec.engage_at:g} {unit} with the master at {speed / per_unit:.6g} {unit}/s "
                 f"from master.slave_start {spec.slave_start:g} {profile.slave_unit} within "
                 f"master.max_velocity, slave_max_acceleration, slave_max_jerk: "
-                f"{exc} (positions in counts)") from None
+                f"{str(exc).splitlines()[0] if str(exc) else exc!r} (positions in counts)") from None
         return slave_plan.master, slave_plan
     return ConstantSpeed(speed), None
 

@@ -88,7 +88,7 @@ from ecam.camfile import CAMS_DIR, load_cam, read_toml
 from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
-from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, parse_tolerance
+from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, TableSpec, parse_tolerance
 from ecam.validate import Fields, choice, fail, number, show
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.drive.objects import interpolation_period
@@ -203,6 +203,12 @@ class CamSpec:
     def load_profile(self) -> CamProfile:
         """The cam: the one given in Python, else the cam file read and checked."""
         return self.profile if self.profile is not None else load_cam(self.file)
+
+    def table_spec(self, profile: CamProfile) -> TableSpec:
+        """The table to compile: these settings over the cam's own ``[table]``."""
+        return TableSpec.resolve(profile.table, interp=self.interp, points=self.points,
+                                 tolerance=self.tolerance, master_counts=self.master_counts,
+                                 slave_counts_per_unit=self.slave_counts_per_unit)
 
 
 @dataclass(frozen=True)

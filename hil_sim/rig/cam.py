@@ -60,17 +60,8 @@ def compile_cam(scene: Scene) -> CompiledCam:
 
 def _compile_uncached(scene: Scene) -> CompiledCam:
     profile = scene.cam.load_profile()
-    spec = scene.cam
-    kwargs = dict(interp=spec.interp, master_counts=spec.master_counts,
-                  slave_counts_per_unit=spec.slave_counts_per_unit)
-    if spec.points is not None:
-        kwargs["points"] = spec.points
-    if spec.tolerance is not None:
-        kwargs["tolerance"] = spec.tolerance
-    table = ecam.compile_table(profile, **kwargs)
-    scale = table.report.get("slave_counts_per_unit") or spec.slave_counts_per_unit \
-        or profile.table.get("slave_counts_per_unit")
-    return CompiledCam(profile, table, float(scale))
+    table = ecam.compile_table(profile, scene.cam.table_spec(profile))
+    return CompiledCam(profile, table, float(table.certificate.slave_counts_per_unit))
 
 
 def cam_acceleration(profile: CamProfile) -> np.ndarray:

@@ -45,6 +45,8 @@ from ..profile import CamProfile
 from ..table import divisors
 from ..table_spec import TableSpec, parse_tolerance
 from ..validate import integer
+from .batched import linspaces
+from .stretches import Stretches, settle
 
 __all__ = [
     "EXPORT_VERSION", "Cam", "Hermite", "Reading", "ExportCertificate", "VendorExport", "certify", "predicted",
@@ -97,7 +99,16 @@ class Cam:
             (float(d.master), int(d.order), float(d.jump)) for d in profile.jumps(max_order=5)
             if 0.0 < d.master < self.period
         )
+        # The same jumps as arrays, and their positions sorted (equal ones in report order): an
+        # interval finds the jumps inside it by bisection, not by reading them all -- the greedy
+        # placement asks for thousands of intervals, and a cam may have 10^5 jumps.
+        self.jump_at = np.array([where for where, _, _ in self.jumps], dtype=float)
+        self.jump_order = np.array([order for _, order, _ in self.jumps], dtype=np.int64)
+        self.jump_size = np.array([size for _, _, size in self.jumps], dtype=float)
+        self._jump_rank = np.argsort(self.jump_at, kind="stable")
+        self._jump_sorted = self.jump_at[self._jump_rank]
         self._envelopes: dict = {}
+        self._stretches: dict = {}  # equidistributed's weights, by (order, forced knots, floor)
         self._check_seam()
 
     @property
@@ -173,26 +184,31 @@ class Cam:
 
     def _envelope(self, order: int):
         if order not in self._envelopes:
-            cuts = sorted({0.0, self.period, *(b for b, _, _ in self.profile.breaks() if 0.0 < b < self.period)})
+            cuts = np.array(sorted({0.0, self.period,
+                                    *(b for b, _, _ in self.profile.breaks() if 0.0 < b < self.period)}))
+            p0, p1 = cuts[:-1], cuts[1:]
             width = self.period / 2**14
-            lefts, rights, cells = [], [], []
-            for p0, p1 in zip(cuts[:-1], cuts[1:]):
-                count = max(16, math.ceil((p1 - p0) / width))
-                nodes = np.linspace(p0, p1, count + 1)
-                inner = nodes[:-1]
-                values = np.abs(np.concatenate([self(inner, order, "right"), self(nodes[-1:], order, "left")]))
-                slopes = np.abs(np.concatenate([self(inner, order + 1, "right"),
-                                                self(nodes[-1:], order + 1, "left")]))
-                step = (p1 - p0) / count
-                cells.append(np.maximum(values[:-1], values[1:]) + slopes.max() * step / 2 * _SAMPLE_MARGIN)
-                lefts.append(nodes[:-1])
-                rights.append(nodes[1:])
-            base = np.concatenate(cells)
+            count = np.array([max(16, math.ceil(c)) for c in ((p1 - p0) / width).tolist()], dtype=np.int64)
+            nodes, piece, last = linspaces(p0, p1, count)
+            # every piece at once: its nodes from the right, its end from the left (one call each)
+            values = np.empty(nodes.size)
+            slopes = np.empty(nodes.size)
+            values[~last] = self(nodes[~last], order, "right")
+            values[last] = self(nodes[last], order, "left")
+            slopes[~last] = self(nodes[~last], order + 1, "right")
+            slopes[last] = self(nodes[last], order + 1, "left")
+            values, slopes = np.abs(values), np.abs(slopes)
+            first = np.flatnonzero(np.concatenate([[True], last[:-1]]))  # each piece's first node
+            steepest = np.maximum.reduceat(slopes, first)
+            step = (p1 - p0) / count
+            margin = steepest * step / 2 * _SAMPLE_MARGIN
+            cell = ~last[:-1]  # a cell from every node but a piece's last one to the next node
+            base = np.maximum(values[:-1], values[1:])[cell] + margin[piece[:-1][cell]]
             table = [base]
             while (1 << len(table)) <= base.size:
                 previous, half = table[-1], 1 << (len(table) - 1)
                 table.append(np.maximum(previous[:-half], previous[half:]))
-            self._envelopes[order] = (np.concatenate(lefts), np.concatenate(rights), table)
+            self._envelopes[order] = (nodes[:-1][cell], nodes[1:][cell], table)
         return self._envelopes[order]
 
     def breaks(self, max_order: int) -> list[float]:
@@ -311,27 +327,52 @@ def interval_bounds(cam: Cam, hermite: Hermite, *, extra: float = 0.0, inside=No
     ``extra`` (units) is added to each, for rounding the consumer applies to its output. ``inside``
     may carry the cam's one-sided derivatives at the intervals' ends, (at a from the right, at b from
     the left), each shaped like ``hermite.left``, when the caller has them already."""
-    n = hermite.degree
+    return _bounds(cam, hermite.degree, hermite.x[:-1], hermite.x[1:], hermite.left, hermite.right,
+                   extra=extra, inside=inside)
+
+
+def _bounds(cam: Cam, n: int, a, b, left, right, *, extra: float = 0.0, inside=None) -> np.ndarray:
+    """:func:`interval_bounds` of the Hermite polynomials of degree ``n`` on intervals [a[i], b[i]]
+    with end data ``left[i]`` and ``right[i]``; the intervals need not be adjacent (the greedy
+    placement weighs many candidate intervals from one knot at once). Each interval's bound is
+    computed element by element, so it is the same number however many are asked together."""
     r = (n + 1) // 2
-    a, b = hermite.x[:-1], hermite.x[1:]
     h = b - a
     smooth = _SMOOTH[n] * h ** (n + 1) * cam.bounds(n + 1, a, b)
-    jumps = np.zeros(a.size)
-    for where, order, size in cam.jumps:
-        if order > n:
-            continue
-        i = int(np.searchsorted(hermite.x, where, side="right")) - 1
-        if 0 <= i < a.size and a[i] < where < b[i]:
-            jumps[i] += abs(size) * h[i] ** order * _psi_cost(n, order, round(float((where - a[i]) / h[i]), 12))
+    jumps = _jump_costs(cam, n, a, b, h)
     if inside is None:
         inside = (np.stack([cam(a, k, "right") for k in range(r)], axis=1),
                   np.stack([cam(b, k, "left") for k in range(r)], axis=1))
     scale = h[:, None] ** np.arange(r)
-    delta = np.concatenate([(hermite.left - inside[0]) * scale, (hermite.right - inside[1]) * scale], axis=1)
+    delta = np.concatenate([(left - inside[0]) * scale, (right - inside[1]) * scale], axis=1)
     data = matmul(np.abs(delta), _basis_on(n, _T.size)).max(axis=1) * _SAMPLE_MARGIN
     # the cam and the consumer both evaluate in float64: a few ulp of the largest position
     roundoff = 64 * 2.0**-52 * (cam.peak + 1.0)
     return smooth + jumps + data + roundoff + extra
+
+
+def _jump_costs(cam: Cam, n: int, a, b, h) -> np.ndarray:
+    """Per interval, the sum over the cam's jumps of order <= n strictly inside it of |jump| h^order
+    psi (module docstring), added in the order of ``cam.jumps``. The jumps inside come from two
+    bisections per interval in the sorted positions: the cost is in the jumps that are inside, not
+    in all the cam's jumps for every interval (which made the greedy placement quadratic)."""
+    out = np.zeros(a.size)
+    first = np.searchsorted(cam._jump_sorted, a, side="right")
+    count = np.maximum(0, np.searchsorted(cam._jump_sorted, b, side="left") - first)
+    if not count.any():  # the common case: knots on the jumps
+        return out
+    interval = np.repeat(np.arange(a.size), count)
+    rank = np.arange(interval.size) - np.repeat(np.cumsum(count) - count, count) + np.repeat(first, count)
+    k = cam._jump_rank[rank]
+    report = np.lexsort((k, interval))  # each interval's jumps in the cam's order
+    interval, k = interval[report], k[report]
+    keep = cam.jump_order[k] <= n
+    interval, k = interval[keep], k[keep]
+    order, size = cam.jump_order[k], cam.jump_size[k]
+    at = (cam.jump_at[k] - a[interval]) / h[interval]
+    cost = np.array([_psi_cost(n, o, round(u, 12)) for o, u in zip(order.tolist(), at.tolist())])
+    np.add.at(out, interval, np.abs(size) * h[interval] ** order.astype(float) * cost)
+    return out
 
 
 # -- the measured error -------------------------------------------------------------------------------
@@ -508,7 +549,8 @@ def certify(cam: Cam, readings, tolerance_units: float | None = None) -> ExportC
 
 
 # -- point placement ----------------------------------------------------------------------------------
-def greedy_knots(bound, grid: int, forced, budget: float, *, min_step: int = 1, most: int | None = None):
+def greedy_knots(bound, grid: int, forced, budget: float, *, min_step: int = 1, most: int | None = None,
+                 bounds=None):
     """Fewest knots on the grid 0..grid whose every interval's bound is within ``budget``.
 
     ``bound(i, j)`` is the predicted bound of the interval between grid indices i < j; it must not
@@ -516,6 +558,12 @@ def greedy_knots(bound, grid: int, forced, budget: float, *, min_step: int = 1, 
     are grid indices that must be knots (0 and ``grid`` included). Knots are at least ``min_step``
     apart. Returns the knot indices, or None when even ``min_step`` misses the budget somewhere or
     more than ``most`` knots would be needed.
+
+    ``bounds(i, js)``, optional, gives ``bound(i, j)`` for every j of an array at once, to the
+    same numbers. The search then asks it, whenever it needs a bound it has not got, for that one
+    together with those it may need next from the same knot (the next doublings, the bisection
+    below the current bracket): a knot costs one or two calls instead of one per probe, and the
+    knots are the same.
     """
     knots = [forced[0]]
     guess = min_step
@@ -524,28 +572,42 @@ def greedy_knots(bound, grid: int, forced, budget: float, *, min_step: int = 1, 
             return None
         i = start
         while i < end:
-            def ok(j):
-                return (j == end or j <= end - min_step) and bound(i, j) <= budget
+            known: dict = {}  # bound(i, j) by j
 
-            if ok(end):
+            def ok(j, ahead=lambda: ()):
+                if not (j == end or j <= end - min_step):
+                    return False
+                if j not in known:
+                    if bounds is None:
+                        known[j] = bound(i, j)
+                    else:
+                        wanted = sorted({k for k in (j, *ahead()) if i < k <= end and k not in known})
+                        values = bounds(i, np.array(wanted, dtype=np.int64))
+                        known.update(zip(wanted, (float(v) for v in values)))
+                return known[j] <= budget
+
+            first = min(end, i + max(guess, min_step))  # the reach tried first: the last step's
+            if ok(end, lambda: [i + min_step, first, *_doublings(i, first, end, 3),
+                                *_bisections(i + min_step, first, 5),
+                                *_bisections(first, min(end, first + (first - i)), 5)]):
                 knots.append(end)
                 break
             low = i + min_step
             if low > end or not ok(low):
                 return None
-            high = min(end, i + max(guess, min_step))
+            high = first
             if ok(high):  # grow until the bound fails
                 low = high
                 while True:
                     high = min(end, low + (low - i))
-                    if not ok(high):
+                    if not ok(high, lambda: [*_doublings(i, high, end, 3), *_bisections(low, high, 4)]):
                         break
                     low = high
                     if high == end:
                         break
             while high - low > 1:
                 mid = (low + high) // 2
-                if ok(mid):
+                if ok(mid, lambda: _bisections(low, high, 5)):
                     low = mid
                 else:
                     high = mid
@@ -557,6 +619,29 @@ def greedy_knots(bound, grid: int, forced, budget: float, *, min_step: int = 1, 
     return knots
 
 
+def _doublings(i: int, reach: int, end: int, count: int) -> list[int]:
+    """The next ``count`` reaches of :func:`greedy_knots`' growth from knot i past ``reach``."""
+    out = []
+    for _ in range(count):
+        reach = min(end, reach + (reach - i))
+        out.append(reach)
+    return out
+
+
+def _bisections(low: int, high: int, depth: int) -> list[int]:
+    """Every probe a bisection of (low, high) may make in its next ``depth`` steps."""
+    out, brackets = [], [(low, high)]
+    for _ in range(depth):
+        narrower = []
+        for lo, hi in brackets:
+            if hi - lo > 1:
+                mid = (lo + hi) // 2
+                out.append(mid)
+                narrower += [(lo, mid), (mid, hi)]
+        brackets = narrower
+    return out
+
+
 def equidistributed(cam: Cam, intervals: int, order: int, forced, grid: int, floor: float = 1e-3,
                     end_intervals: int = 1) -> np.ndarray:
     """``intervals`` intervals placed where |d^order y/dx^order|^(1/order) is large (the error of an
@@ -564,40 +649,27 @@ def equidistributed(cam: Cam, intervals: int, order: int, forced, grid: int, flo
     snapped to the grid of ``grid`` steps per period. ``floor`` (a fraction of the mean density) is
     added everywhere, so no interval grows without bound where the derivative vanishes (a dwell).
     The first and last stretches between forced knots get at least ``end_intervals`` intervals.
-    Returns sorted unique knot grid indices."""
-    forced = sorted(set(forced))
-    fine = 4096
-    pieces = []
-    for lo, hi in zip(forced[:-1], forced[1:]):
-        x = np.linspace(lo, hi, fine + 1)
-        mid = (x[:-1] + x[1:]) / 2
-        density = np.abs(cam(mid, order, "right")) ** (1.0 / order)
-        pieces.append((x, density))
-    everything = np.concatenate([d for _, d in pieces])
-    added = floor * float(everything.mean()) if everything.max() > 0 else 1.0
-    weights = []
-    for x, density in pieces:
-        cell = np.diff(x) * (density + added)
-        weights.append(cell)
-    totals = np.array([w.sum() for w in weights])
-    base = np.ones(len(pieces), dtype=int)
+    Returns sorted unique knot grid indices.
+
+    Each stretch between forced knots is cut into 4096 cells weighed by the density at their
+    middle; the intervals are shared out by weight (largest remainder), and each stretch's knots
+    cut its cumulative weight evenly. The weights are computed once per cam, order, forced knots
+    and floor (:class:`.stretches.Stretches`): a search over the count pays only the sharing out.
+    """
+    forced = tuple(sorted(set(forced)))
+    key = (order, forced, floor)
+    if key not in cam._stretches:
+        cam._stretches[key] = Stretches(cam, order, forced, floor)
+    stretches = cam._stretches[key]
+    totals = stretches.totals
+    base = np.ones(totals.size, dtype=int)
     base[0] = max(base[0], end_intervals)
     base[-1] = max(base[-1], end_intervals)
     total = max(intervals, int(base.sum()))
     desired = totals / totals.sum() * total
-    counts = np.maximum(base, np.floor(desired).astype(int))
-    while counts.sum() > total:  # largest remainder, both ways; ties to the first piece
-        over = np.where(counts > base, counts - desired, -np.inf)
-        counts[int(np.argmax(over))] -= 1
-    while counts.sum() < total:
-        counts[int(np.argmax(desired - counts))] += 1
-    knots = []
-    for (x, _), cell, count in zip(pieces, weights, counts):
-        cumulative = np.concatenate([[0.0], np.cumsum(cell)])
-        targets = np.linspace(0.0, cumulative[-1], count + 1)
-        knots.extend(np.interp(targets, cumulative, x))
-    indices = np.unique(np.round(np.array(knots) / cam.period * grid).astype(np.int64))
-    return indices
+    counts = settle(np.maximum(base, np.floor(desired).astype(int)), base, desired, total)
+    knots = stretches.knots(counts)
+    return np.unique(np.round(knots / cam.period * grid).astype(np.int64))
 
 
 def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: int, what: str,
@@ -616,18 +688,25 @@ def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: i
     forced = sorted({int(round(x / cam.period * grid)) for x in cam.breaks(degree)})
     cache: dict = {}
 
-    def data(i):  # (stored data, right limits, left limits) at grid index i
-        if i not in cache:
-            cache[i] = knot_data(cam, np.array([i * cam.period / grid]), r, sides=True)
-        return cache[i]
+    def data(indices):  # (stored data, right limits, left limits) at grid indices, one row each
+        missing = sorted({k for k in indices.tolist() if k not in cache})
+        if missing:
+            at = np.array(missing, dtype=np.int64)
+            stored, right, left = knot_data(cam, at * cam.period / grid, r, sides=True)
+            cache.update((k, (stored[n], right[n], left[n])) for n, k in enumerate(missing))
+        rows = [cache[k] for k in indices.tolist()]
+        return tuple(np.array([row[part] for row in rows]) for part in range(3))
 
     stored_rounding = quantum / 2 * _SAMPLE_MARGIN + rounding  # the most rounding adds (units)
 
+    def bounds(i, js):  # the bounds of the intervals from grid index i to each of js, at once
+        (stored_i, right_i, _), (stored_j, _, left_j) = data(np.array([i])), data(js)
+        start = np.full(js.size, i) * (cam.period / grid)
+        return _bounds(cam, degree, start, js * (cam.period / grid), np.repeat(stored_i, js.size, axis=0),
+                       stored_j, extra=stored_rounding, inside=(np.repeat(right_i, js.size, axis=0), left_j))
+
     def bound(i, j):
-        x = np.array([i, j]) * (cam.period / grid)
-        (stored_i, right_i, _), (stored_j, _, left_j) = data(i), data(j)
-        hermite = Hermite(x, degree, stored_i, stored_j)
-        return float(interval_bounds(cam, hermite, extra=stored_rounding, inside=(right_i, left_j))[0])
+        return float(bounds(i, np.array([j], dtype=np.int64))[0])
 
     def spread(count):  # every joint is a knot here: a dwell's ends bound the error tightly
         return spread_knots(cam, count, degree + 1, cam.breaks(5), grid, min_step=min_step)
@@ -640,7 +719,7 @@ def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: i
     most = min(limit + 1, grid // min_step + 1)  # no more knots than the grid holds
     while file_points(most) > limit:
         most -= 1
-    knots = greedy_knots(bound, grid, forced, tolerance, min_step=min_step, most=most)
+    knots = greedy_knots(bound, grid, forced, tolerance, min_step=min_step, most=most, bounds=bounds)
     if knots is not None and file_points(len(knots)) <= limit:
         return np.array(knots)
     # Over the limit (or a step below the minimum spacing somewhere): spreading the points by the
@@ -675,8 +754,14 @@ def spread_knots(cam: Cam, count: int, order: int, forced, grid: int, *, min_ste
     joints that must be knots, or more than the grid holds)."""
     if min_step == 1 and count == grid + 1:  # every grid point
         return np.arange(grid + 1, dtype=np.int64)
+    impossible = False
+    if min_step == 1:
+        # Every spread keeps each stretch's end (the forced knots after 0) as a knot, and no two knots
+        # merge: fewer knots than those ends never come out, however the intervals are shared.
+        ends = {int(round(x / cam.period * grid)) for x in sorted(set(forced))[1:]}
+        impossible = count < len(ends)
     intervals = count - 1
-    for _ in range(40):
+    for _ in range(0 if impossible else 40):
         knots = equidistributed(cam, max(1, intervals), order, forced, grid, **placement)
         kept = [int(knots[0])]
         for k in knots[1:]:

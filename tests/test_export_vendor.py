@@ -179,6 +179,28 @@ def test_an_unreachable_tolerance_is_one_line_with_the_best_error_and_the_limit(
         export_cam(drrd, "technosoft", tolerance="0.5 counts")
 
 
+@pytest.mark.parametrize("master_counts, limit", [(72, 60), (144, 120), (360, 300)])
+def test_the_best_error_is_a_number_when_the_limit_exceeds_what_the_grid_holds_where_it_is_needed(
+        drrd, monkeypatch, master_counts, limit):
+    """CODESYS allows 32767 points, more than a rise of combination_drrd holds in whole master counts
+    (36864 per period): the points cannot all go where the error wants them. The best reachable error
+    is then that of the most points that do fit (it said 'at least inf'). A small limit on a coarse
+    grid is the same situation at a test's cost."""
+    monkeypatch.setattr(vendor_format("codesys"), "LIMIT", limit)
+    with pytest.raises(TableFormatError) as info:
+        export_cam(drrd, "codesys", tolerance=1e-15, master_counts=master_counts)
+    message = str(info.value)
+    assert "\n" not in message and f"within its limit of {limit} points (at " in message
+    best = float(message.split("should be at least ")[1].split()[0])
+    at = int(message.split("(at ")[1].split()[0])
+    assert math.isfinite(best) and 2 <= at <= limit
+    # the error named is reached: that many points give it, and a tolerance just above it is met
+    reached = export_cam(drrd, "codesys", points=at, master_counts=master_counts)
+    assert math.isclose(reached.certificate.predicted_error_units, best, rel_tol=1e-3)
+    met = export_cam(drrd, "codesys", tolerance=best * 1.001, master_counts=master_counts)
+    assert met.points <= limit and met.certificate.predicted_error_units <= best * 1.001
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"format": "siemens", "points": 10}, "format: 'siemens' should be one of codesys, twincat-cnc"),
     ({"format": "csv", "interp": "spline", "points": 10}, "interp: 'spline' should be one of linear, cubic"),

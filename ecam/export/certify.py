@@ -371,7 +371,10 @@ def _jump_costs(cam: Cam, n: int, a, b, h) -> np.ndarray:
     order, size = cam.jump_order[k], cam.jump_size[k]
     at = (cam.jump_at[k] - a[interval]) / h[interval]
     cost = np.array([_psi_cost(n, o, round(u, 12)) for o, u in zip(order.tolist(), at.tolist())])
-    np.add.at(out, interval, np.abs(size) * h[interval] ** order.astype(float) * cost)
+    # h^order by the C library's pow, one element at a time, as the per-jump code computed it: on
+    # AVX-512 CPUs numpy's array power runs a vector pow (SVML) whose last bit differs from pow()
+    widths = np.array([w ** o for w, o in zip(h[interval].tolist(), order.tolist())])
+    np.add.at(out, interval, np.abs(size) * widths * cost)
     return out
 
 
@@ -736,6 +739,11 @@ def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: i
         return float(interval_bounds(cam, hermite, extra=stored_rounding).max()), spread_at
 
     best, _ = spread_bound(most)
+    while not math.isfinite(best) and most > 2:
+        # that many knots do not fit the grid where the error wants them (a cam whose rises are
+        # shorter than the limit in whole master counts): the best error is that of the most that do
+        most = max(2, most - max(1, most // 16))
+        best, _ = spread_bound(most)
     if best > tolerance:
         raise unreachable(what, tolerance, best, limit, cam, file_points(most))
     low, high = 1, most  # spread_bound(high) meets the tolerance; bisect for the fewest

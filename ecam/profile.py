@@ -710,9 +710,11 @@ class CamProfile:
 
     @functools.cached_property
     def slave_range(self) -> tuple[float, float]:
-        """Smallest and largest slave position over the period (dense sample + joints)."""
+        """Smallest and largest slave position over the period (dense sample + joints + the
+        period's end approached from the left: a periodic cam wraps at the period, so its last
+        position is reached only there, the step back at the seam when no net stroke is declared)."""
         x = np.concatenate([np.linspace(0, self.master_period, 20001), self.joints()])
-        y = self(x)
+        y = np.append(self(x), self(self.master_period, side="left"))
         return float(y.min()), float(y.max())
 
     def joints(self) -> np.ndarray:

@@ -95,6 +95,19 @@ def test_seam_position_jump_is_reported():
     assert "seam" in seam[0].where
 
 
+def test_the_slave_range_takes_the_position_reached_at_the_seam():
+    """A periodic cam that ends its period higher than it starts (a net stroke left undeclared)
+    reaches that end position just before the seam, where the evaluation wraps back to 0: the
+    range (what `ecam check` prints as the stroke) is 0 .. 360, not the last sample's 359.98."""
+    ramp = CamProfile.from_segments([Segment.from_span(360.0, 360.0, "constant_velocity")])
+    assert ramp(360.0) == 0.0 and ramp(360.0, side="left") == 360.0
+    assert ramp.slave_range == (0.0, 360.0)
+    declared = CamProfile.from_segments([Segment.from_span(360.0, 360.0, "constant_velocity")], net_stroke=360.0)
+    assert declared.slave_range == (0.0, 360.0)
+    falling = CamProfile.from_segments([Segment.from_span(360.0, -360.0, "constant_velocity")])
+    assert falling.slave_range == (-360.0, 0.0)
+
+
 def test_a_declared_net_stroke_makes_the_seam_a_joint():
     segments = chain([("cycloidal", 90.0, 10.0), ("constant_velocity", 90.0, 0.0)]).segments
     profile = CamProfile(segments, 180.0, net_stroke=10.0)

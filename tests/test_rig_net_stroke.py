@@ -4,12 +4,19 @@ and by cam-in; its tracking check applies in the cut zone, which spans the seam.
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
+from ecam.app.rig_commands import format_search
+from ecam.camfile import parse_cam
 from hil_sim import SCENES_DIR
-from hil_sim.rig import run_scene
+from hil_sim.rig import find_max_speed, run_scene
+from hil_sim.rig.cam import compile_cam
+from hil_sim.rig.plan import cruise_s
+from hil_sim.rig.search import PERIODS_AT_CRUISE, trial_scene
 from hil_sim.scene import DurationSpec, load_scene
 
 KNIFE = SCENES_DIR / "rotary_knife.toml"
@@ -87,3 +94,107 @@ def test_the_start_up_transient_is_left_out_only_when_asked(knife):
     settled = _fast(jump)
     assert not whole.check("tracking_error").passed
     assert settled.check("tracking_error").passed
+
+
+@pytest.fixture(scope="module")
+def knife_search(knife):
+    lines = []
+    return find_max_speed(knife, progress=lines.append), lines
+
+
+def test_find_max_speed_on_the_knife(knife, knife_search):
+    """Issue 9, item 6 on the shipped scene: one progress line per trial, the result in master
+    units/s and cuts per minute with the check that limited it, every trial long enough to reach
+    cruise and run PERIODS_AT_CRUISE cuts at it; at the speed found the scene passes over
+    CANopen, 5 % above it it fails."""
+    result, lines = knife_search
+    speed = result["speed"]
+    assert speed is not None and result["confirmed"] and result["unit"] == "deg/s"
+    assert speed > abs(knife.master.units_per_second(360.0))  # the scene's 120 cuts/min pass
+    assert result["periods_per_minute"] == pytest.approx(60.0 * speed / 360.0, rel=1e-12)
+    assert len(lines) == len(result["runs"]) >= 4
+    assert [line.split(":")[0] for line in lines] == [f"trial {i}" for i in range(1, len(lines) + 1)]
+    assert result["limiting_check"].startswith("FAIL  ")
+    assert result["limiting_check"].split("FAIL  ")[1].split(":")[0] in result["failed_checks"]
+    assert speed < result["failing_speed"] <= 1.05 * speed
+    text = format_search(result)
+    assert f"max speed: {speed:.6g} deg/s = {60.0 * speed / 360.0:.6g} periods per minute" in text
+    assert f"limited by: at {result['failing_speed']:.6g} deg/s FAIL  " in text
+    assert f"then {PERIODS_AT_CRUISE} periods" in text
+    # each trial reaches cruise, then runs PERIODS_AT_CRUISE whole cuts at that speed
+    at_speed = run_scene(trial_scene(knife, speed))
+    assert at_speed.passed, at_speed.to_text()
+    time, master = at_speed.series["time_s"], at_speed.series["master_position"]
+    travel = np.unwrap(np.deg2rad(master)) * 180.0 / np.pi  # master deg, run on through the wraps
+    cruising = np.abs(np.diff(travel) / np.diff(time) - speed) <= 1e-6 * speed
+    first = int(np.argmax(cruising))  # the master is at its cruise speed from here to the end
+    assert first > 0 and np.all(cruising[first:])
+    assert (travel[-1] - travel[first]) >= (PERIODS_AT_CRUISE - 0.01) * 360.0
+    assert time[first] <= max(cruise_s(trial_scene(knife, speed), compile_cam(trial_scene(knife, speed))),
+                              knife.limits.settle_s) + 0.01
+    faster = run_scene(trial_scene(knife, 1.05 * speed))
+    assert not faster.passed
+
+
+def test_an_infeasible_trial_is_a_failed_speed_in_the_scene_words(knife):
+    """A cam-in that cannot engage before the master reaches engage_at is a failed speed with
+    its reason (the scene's field in master deg, the speed tried), not the end of the search."""
+    master = replace(knife.master, profile="cam_in", max_acceleration=None, max_jerk=None,
+                     engage_at=200.0, slave_start=0.0, max_velocity=2000.0,
+                     slave_max_acceleration=40000.0, slave_max_jerk=4e6)
+    scene = replace(knife, master=master, limits=replace(knife.limits, settle_s=1.0))
+    lines = []
+    result = find_max_speed(scene, progress=lines.append)
+    infeasible = [r for r in result["runs"] if "reason" in r]
+    assert infeasible and not any(r["passed"] for r in infeasible)
+    for run in infeasible:
+        assert f"master.engage_at 200 deg with the master at {abs(run['speed']):.6g} deg/s" in run["reason"]
+    assert sum("cannot run: master.profile 'cam_in'" in line for line in lines) == len(infeasible)
+    assert result["speed"] is not None and result["confirmed"]
+    assert result["speed"] < min(abs(r["speed"]) for r in infeasible)
+
+
+@pytest.mark.parametrize("cam_mode", ["controller", "drive"])
+def test_a_cam_with_a_negative_net_stroke(knife, cam_mode):
+    """The hard case of a negative net stroke on the rig: the web runs forwards, the drum turns
+    backwards, -360 deg a cut (every stroke of the shipped cam negated), through the wraps,
+    controller- and drive-side."""
+    forward = knife.cam.load_profile()
+    text = knife.cam.file.read_text()
+    for old, new in [("stroke = 36.0", "stroke = -36.0"), ("stroke = 288.0", "stroke = -288.0"),
+                     ("net_stroke = 360.0", "net_stroke = -360.0")]:
+        assert old in text
+        text = text.replace(old, new)
+    backward = parse_cam(tomllib.loads(text), source="rotary_knife backwards")
+    x = np.linspace(-360.0, 720.0, 1081)
+    assert np.allclose(backward(x), -forward(x), rtol=0, atol=1e-9) and backward.check().ok
+    scene = replace(knife, cam_mode=cam_mode, cam=replace(knife.cam, profile=backward),
+                    duration=DurationSpec(seconds=3.0))
+    assert compile_cam(scene).table.net_stroke == -360000  # counts per cut: the rig runs this cam
+    report = _fast(scene)
+    assert report.passed, report.to_text()
+    assert report.summary["master"]["speed"] > 0
+    assert report.check("tracking_error").value < 0.2 * knife.limits.tracking_error
+
+
+def test_the_scene_in_the_users_words(knife, tmp_path):
+    """Item 7: the table tolerance in the slave unit ("0.001 deg") is the plain number, in counts
+    it is counts; a gear ratio entered the wrong way round (5 for 5:1) shows in the report as a
+    speed-up with an inertia ratio 625 times the reduction's."""
+    text = KNIFE.read_text().replace('"../../firmware_tables/cams/rotary_knife.toml"',
+                                     repr(str(knife.cam.file)))
+    tables = []
+    for tolerance in ('"0.001 deg"', "0.001", '"1 counts"'):
+        path = tmp_path / "knife.toml"
+        path.write_text(text.replace('tolerance = "2 counts"', f"tolerance = {tolerance}"))
+        tables.append(compile_cam(load_scene(path)).table.to_bytes())
+    assert tables[0] == tables[1] and tables[2] == compile_cam(
+        replace(knife, cam=replace(knife.cam, tolerance=0.001))).table.to_bytes()  # 1 count = 0.001 deg
+    path.write_text(text.replace("gear_ratio = 0.2 ", "gear_ratio = 5.0 "))  # meant as 5:1
+    report = _fast(replace(load_scene(path), duration=DurationSpec(cycles=20)))
+    assert report.summary["mechanics"]["gear"] == "1:5 speed-up"
+    reduction = _fast(replace(knife, duration=DurationSpec(cycles=20))).summary["mechanics"]
+    assert reduction["gear"] == "5:1 reduction"
+    # J_load r^2 / eta over J_motor: r = 5 instead of 0.2 is 25^2 times the load's share
+    assert report.summary["mechanics"]["inertia_ratio"] == pytest.approx(625 * reduction["inertia_ratio"], rel=1e-9)
+    assert reduction["inertia_ratio"] == pytest.approx(0.0674 * 0.2**2 / 0.97 / 5.43e-4, rel=1e-9)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from .errors import InputError
 from .profile import ORDER_NAMES, CamProfile
 
 __all__ = ["plot_profile", "check_figure_path", "save_figure", "MARKED", "LABELLED", "PER_SEGMENT"]
@@ -13,10 +16,6 @@ FIGURE_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff"
 
 def check_figure_path(path) -> None:
     """Reject, before any work, a figure file whose format or directory cannot be written."""
-    from pathlib import Path
-
-    from .errors import InputError
-
     path = Path(path)
     suffix = path.suffix.lower().lstrip(".")
     if suffix not in FIGURE_FORMATS:
@@ -29,8 +28,6 @@ def check_figure_path(path) -> None:
 def save_figure(fig, path, dpi: int = 110) -> None:
     """Save and close a matplotlib figure; a bad path is one InputError line, not a traceback."""
     import matplotlib.pyplot as plt
-
-    from .errors import InputError
 
     check_figure_path(path)
     try:

@@ -93,7 +93,8 @@ class TableSpec:
             "slave_counts_per_unit", self.slave_counts_per_unit, minimum=MIN_COUNTS_PER_UNIT,
             maximum=MAX_COUNTS_PER_UNIT))
         if self.points is not None and self.tolerance is not None:
-            raise InputError("give either points or tolerance, not both")
+            raise validate.fail("points", _plain_int(self.points),
+                                "absent when a tolerance is given: give either points or tolerance, not both")
         if self.points is None and self.tolerance is None:
             raise InputError("points and tolerance are both missing: give one (--points / --tolerance, "
                              "or points / tolerance in the cam file's [table])")
@@ -103,7 +104,7 @@ class TableSpec:
         else:
             parse_tolerance(self.tolerance)
         if self.interp == "auto" and self.tolerance is None:
-            raise InputError("interp 'auto' needs a tolerance (it picks the point count)")
+            raise validate.fail("interp", self.interp, "given a tolerance, not points (it picks the point count)")
 
     def tolerance_counts(self, slave_unit: str | None = None) -> float | None:
         """The tolerance in slave counts (None for a table of fixed size); ``slave_unit`` checks

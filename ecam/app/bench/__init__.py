@@ -52,7 +52,8 @@ and a ``kind``:
   measurement included), ``effects_s`` and ``fidelity_runs`` (that measurement),
   ``loop_real_time_factor`` (the loop over CANopen), ``fast_real_time_factor`` (the same control
   and plant bus-free), ``us_per_cycle`` and ``cost_us_per_cycle`` (``lookup``, ``canopen``,
-  ``drive_loop``, ``plant``), or ``available: false`` with a ``reason``.
+  ``drive_loop``, ``plant``), and ``available`` (always true: a rig that cannot run is an error
+  of the bench, raised, never a row).
 - ``"rig_search"``: find-max-speed on the scene: ``wall_s``, ``speed``, ``unit``,
   ``trials_fast``, ``trials_canopen``, ``limiting_check``, ``resolution``.
 - ``"target"``: ``name``, ``value``, ``relation``, ``limit``, ``met``, ``factor`` (value / limit),

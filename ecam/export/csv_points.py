@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..table import KINDS
 from .certify import (
     EXPORT_VERSION, Cam, Hermite, Reading, VendorExport, certify, content_crc, knot_data, place_local, positional,
 )
@@ -26,8 +27,9 @@ NAME = "csv"
 SUFFIX = ".csv"
 LIMIT = 2**20 + 1
 MIN_POINTS = 2
-INTERPOLATIONS = ("linear", "cubic", "quintic")
-DEGREE = {"linear": 1, "cubic": 3, "quintic": 5}
+# the same kinds as ecam's own tables, with the same Hermite degree
+DEGREE = KINDS
+INTERPOLATIONS = tuple(KINDS)
 CARRIES = {"linear": "master, slave", "cubic": "master, slave, velocity",
            "quintic": "master, slave, velocity, acceleration"}
 RULE = {

@@ -410,9 +410,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     if cam_mode == "drive" and master.profile == "cam_in":
         raise top.error("cam_mode: 'drive' should be 'controller' for master.profile 'cam_in' "
                         "(the controller plans the cam-in)")
+    cam_spec = _cam(top, base, cam)
+    drive = _drive(top)
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
-                 cam=_cam(top, base, cam), drive=_drive(top), mechanics=_mechanics(top),
-                 bus=_bus(top), limits=_limits(top), duration=_duration(top),
+                 cam=cam_spec, drive=drive, mechanics=_mechanics(top),
+                 bus=_bus(top), limits=_limits(top), duration=_duration(top, drive.cycle_s),
                  description=description, fidelity=fidelity)
 
 
@@ -617,13 +619,21 @@ def _window(raw: Fields, key: str) -> tuple[float, float] | None:
     return start, end
 
 
-def _duration(top: Fields) -> DurationSpec:
+def _duration(top: Fields, cycle_s: float) -> DurationSpec:
     raw = top.table("duration", {"cycles", "seconds", "master_periods"}, required=True)
     if len(raw.raw) != 1:
         raise raw.error(f"duration: {show(dict(raw.raw))} should give exactly one of cycles, "
                         "seconds, master_periods")
+    seconds = raw.number("seconds", minimum=0.0, strict=True)
+    # Seconds are bounded here, where the file and the field are known, by the cycles they make
+    # at the scene's own cycle time (the rig counts them the same way, hil_sim.rig.plan); cam
+    # periods need the cam and the master speed, so the rig bounds those.
+    if seconds is not None and math.ceil(seconds / cycle_s - 1e-9) > MAX_CYCLES:
+        raise raw.error(f"{raw.name('seconds')}: {show(seconds)} should be <= "
+                        f"{MAX_CYCLES * cycle_s:g} ({MAX_CYCLES} cycles at drive.cycle_s "
+                        f"{cycle_s:g})")
     return DurationSpec(
         cycles=raw.integer("cycles", minimum=1, maximum=MAX_CYCLES),
-        seconds=raw.number("seconds", minimum=0.0, strict=True),
+        seconds=seconds,
         master_periods=raw.number("master_periods", minimum=0.0, strict=True))
 

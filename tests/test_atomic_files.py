@@ -56,3 +56,17 @@ def test_compile_writes_its_files_through_the_atomic_path(tmp_path):
     assert "modified_sine" in (out / "modified_sine.h").read_text()
     assert not (out / "modified_sine.h").is_symlink()
     assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.xfail(strict=True, reason="ecam.plot.save_figure still calls fig.savefig(path), which follows "
+                                       "the link: render to bytes and write_files (issue 14, item 10)")
+def test_plot_replaces_a_symlinked_output_not_its_target(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    out = tmp_path / "cam.png"
+    out.symlink_to(victim)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "plot", str(CAM), "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert victim.read_text() == "precious"
+    assert not out.is_symlink() and out.read_bytes().startswith(b"\x89PNG")

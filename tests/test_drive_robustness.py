@@ -196,6 +196,82 @@ def test_an_exception_escaping_a_handler_is_logged_and_faults_the_drive(session,
 
 
 # ---------------------------------------------------------------------------------------------
+# Issue 14, items 12 and 1, as reproduced: one master jump, one hostile blob
+
+def _drive_side_cam(s: Session) -> bytes:
+    """A booted drive running the combination cam drive-side, its master position at 26 624
+    counts (the rise's steepest slope), following-error monitoring off."""
+    table = ecam.compile_table(ecam.load_cam(CAMS / "combination_drrd.toml"), interp="cubic",
+                               points=289, master_counts=36864, slave_counts_per_unit=100000)
+    blob = table.to_bytes()
+    s.boot()
+    sdo = s.node.sdo
+    sdo.download(0x2000, 0, blob)
+    sdo[0x2001][1].raw = 1  # activate
+    sdo[0x6065].raw = 0xFFFFFFFF  # no following-error fault: the cam runs through the jump
+    s.enable_csp()
+    sdo[0x2004].raw = 1  # drive-side cam
+    for master in (26544, 26584, 26624):  # RPDO3 maps the master position 0x2003
+        s.send(0x401, struct.pack("<i", master))
+        s.sync()
+    return blob
+
+
+def test_a_master_jump_of_2_to_the_30_saturates_the_velocity_offset(session, caplog):
+    """A master that jumps by about 2^30 counts in one 1 ms cycle at the rise's steepest slope
+    (-24 slave counts per master count) asks for a velocity offset of about -2.6e13 counts/s.
+    0x60B1 is INTEGER32 (CiA 402): it saturates at -2^31 as a drive's does, uploads, and an NMT
+    reset-communication (which re-encodes every object) goes through; before, 0x60B1 held
+    -2.6e13, its upload aborted and the reset raised ValueError out of the drive."""
+    caplog.set_level(logging.ERROR, logger="hil_sim")
+    _drive_side_cam(session)
+    sdo = session.node.sdo
+    steady = sdo[0x60B1].raw
+    assert -10**6 < steady < -9 * 10**5  # 40 counts/ms on a slope of about -24: about -9.6e5
+    jump = 2**30 - 4096  # a whole number of periods (36 864 = 9 x 2^12) short of 2^30: same slope
+    session.send(0x401, struct.pack("<i", 26624 + jump))
+    session.sync()
+    assert session.drive.values[(0x60B1, 0)] == -(2**31)
+    assert sdo[0x60B1].raw == -(2**31)  # uploads (an abort would raise)
+    assert session.drive.state == cia402.OPERATION_ENABLED
+    session.node.nmt.send_command(0x82)  # reset communication
+    session.process()
+    session.master.settle()
+    assert session.drive.nmt_state == cia402.PRE_OPERATIONAL
+    assert session.drive.defects == 0
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR], caplog.text
+
+
+def test_the_issue_14_preshift_blob_is_refused_by_the_drive(session):
+    """combination_drrd.bin with slope_preshift (byte 15) = 16 + F + W = 64 and its header CRC
+    recomputed: downloaded to a drive running a table, it is refused (0x08000020, cannot be
+    stored), cannot be activated (0x08000022) and the running table runs on. Before, the Python
+    loader accepted it and the drive activated it."""
+    import zlib
+    from pathlib import Path
+
+    running_blob = _drive_side_cam(session)
+    running = session.drive.active_table
+    blob = bytearray((Path(__file__).resolve().parents[1] / "firmware_tables" / "tables"
+                      / "combination_drrd.bin").read_bytes())
+    assert 16 + blob[11] + blob[12] == 64
+    blob[15] = 64
+    struct.pack_into("<I", blob, 60, zlib.crc32(bytes(blob[:60])))
+    sdo = session.node.sdo
+    with pytest.raises(canopen.SdoAbortedError) as error:
+        sdo.download(0x2000, 0, bytes(blob))
+    assert error.value.code == 0x08000020
+    with pytest.raises(canopen.SdoAbortedError) as error:
+        sdo[0x2001][1].raw = 1
+    assert error.value.code == 0x08000022
+    assert session.drive.active_table is running
+    assert session.drive.active_table.to_bytes() == running_blob
+    session.send(0x401, struct.pack("<i", 26664))
+    session.sync()
+    assert session.drive.state == cia402.OPERATION_ENABLED
+
+
+# ---------------------------------------------------------------------------------------------
 # Fuzz: RPDO, SYNC and NMT frames, bounded and seeded
 
 FUZZ_SEED = 20261124

@@ -63,6 +63,27 @@ def test_deeply_nested_toml_is_one_line(tmp_path, command):
     assert_one_line(run_cli(command, path), "nest too deeply")
 
 
+def test_scene_whose_cam_file_nests_too_deeply(tmp_path):
+    cam = tmp_path / "nested.toml"
+    cam.write_text(nested(500))
+    text = (SCENES / "stiff_coupling.toml").read_text()
+    lines = [f'file = "{cam}"' if line.strip().startswith("file =") else line
+             for line in text.splitlines()]
+    scene = tmp_path / "scene.toml"
+    scene.write_text("\n".join(lines) + "\n")
+    assert_one_line(run_cli("sim", scene), "arrays or tables nest too deeply to parse")
+
+
+@pytest.mark.parametrize("command", ["check", "compile"])
+def test_a_poly5_span_of_1e300_is_one_line(tmp_path, command):
+    # Issue 14 item 4, as reported: OverflowError traceback.
+    path = tmp_path / "span.toml"
+    path.write_text('master_period = 360.0\nperiodic = false\n[[segment]]\nlaw = "poly5"\n'
+                    'span = 1e300\nstroke = 1.0\n')
+    assert_one_line(run_cli(command, path, *(["--points", "9", "-o", tmp_path] if command == "compile" else [])),
+                    "segment[0].span: 1e+300 should be of magnitude <= 1e+150")
+
+
 def test_symlink_loop_as_cam_and_as_scene(tmp_path):
     assert_one_line(run_cli("check", symlink_loop(tmp_path, "cam")), "cannot be read")
     assert_one_line(run_cli("sim", symlink_loop(tmp_path, "scene")), "cannot be read")
@@ -100,10 +121,26 @@ def scene_with(tmp_path, old, new):
     ("slave_counts_per_unit = 100000", "slave_counts_per_unit = 5e-324",
      "cam.slave_counts_per_unit: 4.94065645841e-324 should be >= 1e-06"),
     ("master_periods = 2.0", "seconds = 1e300", "duration.seconds: 1e+300 should be of magnitude <= 1e+150"),
-    ("master_periods = 2.0", "seconds = 1e9", "1e+12 cycles"),
+    # The cycles that seconds make are bounded where the file is read, naming the field and the
+    # limit at the scene's cycle time (issue 14 item 14; the rig's message named neither).
+    ("master_periods = 2.0", "seconds = 1e9",
+     "scene.toml: duration.seconds: 1000000000 should be <= 5000 (5000000 cycles at drive.cycle_s 0.001)"),
+    ("master_periods = 2.0", "seconds = 5000.000001", "duration.seconds: 5000.000001 should be <= 5000"),
+    ("master_periods = 2.0", "cycles = 100000000", "duration.cycles: 100000000 should be an integer in 1..5000000"),
 ])
 def test_huge_and_tiny_scene_numbers_are_one_line(tmp_path, old, new, message):
     assert_one_line(run_cli("sim", scene_with(tmp_path, old, new)), message)
+
+
+def test_the_longest_duration_in_seconds_is_accepted_and_makes_the_most_cycles(tmp_path):
+    import hil_sim
+    from hil_sim.rig.plan import count_cycles
+    from hil_sim.scene import MAX_CYCLES
+
+    for cycle_s, seconds in (("0.001", "5000.0"), ("1e-5", "50.0"), ("0.0025", "12500.0")):
+        path = scene_with(tmp_path, "master_periods = 2.0", f"seconds = {seconds}")
+        path.write_text(path.read_text().replace("cycle_s = 0.001", f"cycle_s = {cycle_s}"))
+        assert count_cycles(hil_sim.load_scene(path), 1.0, 1.0) == MAX_CYCLES
 
 
 def test_smallest_cycle_time_the_validator_allows_runs(tmp_path):

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
+from .atomic_files import write_files
 from .errors import InputError
 from .profile import ORDER_NAMES, CamProfile
 
@@ -30,8 +32,12 @@ def save_figure(fig, path, dpi: int = 110) -> None:
     import matplotlib.pyplot as plt
 
     check_figure_path(path)
+    # rendered in memory and written atomically: a plot path that is a symlink is replaced, never
+    # followed, and a failed write leaves the old figure intact
+    buffer = io.BytesIO()
     try:
-        fig.savefig(path, dpi=dpi)
+        fig.savefig(buffer, format=Path(path).suffix.lower().lstrip("."), dpi=dpi)
+        write_files({Path(path): buffer.getvalue()})
     except OSError as exc:
         raise InputError(f"plot file {str(path)!r} cannot be written: {exc.strerror or exc}") from None
     finally:

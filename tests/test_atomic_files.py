@@ -58,8 +58,6 @@ def test_compile_writes_its_files_through_the_atomic_path(tmp_path):
     assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
 
 
-@pytest.mark.xfail(strict=True, reason="ecam.plot.save_figure still calls fig.savefig(path), which follows "
-                                       "the link: render to bytes and write_files (issue 14, item 10)")
 def test_plot_replaces_a_symlinked_output_not_its_target(tmp_path):
     victim = tmp_path / "victim.txt"
     victim.write_text("precious")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import statistics
 
+from ecam.plot import save_figure
+
 from .plan import IMPLEMENTATIONS, STROKE_COUNTS, TARGET_FRACTION
 
 
@@ -114,8 +116,7 @@ def plot_pareto(rows: list[dict], path) -> None:
     ax_bytes.set_title(f"error against size ({cams} cams, stroke {STROKE_COUNTS:.0e} counts)")
     ax_cost.set_xlabel("ns per lookup (median over the cams; random queries)")
     ax_cost.set_title("error against lookup cost")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 # --- text ---------------------------------------------------------------------------------------

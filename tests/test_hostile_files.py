@@ -259,3 +259,26 @@ def test_a_span_written_at_its_limit_is_accepted(tmp_path):
                     '[[segment]]\nlaw = "dwell"\nend = 1.0\n')
     profile = ecam.load_cam(path)
     assert profile.segments[1].span < 1e-9 and profile.check().ok
+
+
+def test_a_long_list_of_jumps_is_capped_with_errors_first(tmp_path):
+    """Thousands of jerk steps print a screenful, not a line each, and an error among them (here a
+    position gap at the seam) is still shown."""
+    from ecam.app.cam_commands import LISTED
+
+    count = 2 * LISTED + 40
+    body = "".join('[[segment]]\nlaw = "cycloidal"\nspan = 1.0\nstroke = 1.0\n'
+                   '[[segment]]\nlaw = "dwell"\nspan = 1.0\n' for _ in range(count // 2))
+    path = tmp_path / "many.toml"
+    path.write_text(f"master_period = {float(count)}\n" + body)
+    run = subprocess.run([sys.executable, "-m", "ecam.app", "check", str(path)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1, run.stderr
+    lines = run.stdout.splitlines()
+    jumps = [line for line in lines if line.lstrip().startswith(("ERROR", "WARNING"))]
+    assert len(jumps) == LISTED
+    assert jumps[0].lstrip().startswith("ERROR") and "seam" in jumps[0]
+    total = sum(1 for line in lines if "errors," in line)
+    assert total == 1
+    more = [line for line in lines if line.strip().startswith("... and")]
+    assert len(more) == 1 and f"and {count + 1 - LISTED} more" in more[0], more

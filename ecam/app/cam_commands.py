@@ -100,6 +100,11 @@ def check_summary(profile, speed=None) -> dict:
     return out
 
 
+# The text output lists this many jumps (and joints off table points); the rest are counted, so a cam
+# of 100 000 segments prints a screenful, not 10 MB. --json lists every one.
+LISTED = 100
+
+
 def cmd_check(args) -> int:
     profile = load_cam(args.cam)
     speed = None if getattr(args, "speed", None) is None else parse_speed(args.speed, profile)[0]
@@ -126,7 +131,10 @@ def print_check(profile, report, speed=None):
     if not report.discontinuities:
         seam = " (the seam too, the position continuing by the net stroke)" if profile.net_stroke else ""
         print(f"  continuous in position, velocity, acceleration and jerk everywhere{seam}")
-    for d in report.discontinuities:
+    listed = report.discontinuities
+    if len(listed) > LISTED:  # errors before warnings, so a long list never hides an error
+        listed = sorted(listed, key=lambda d: d.severity == "warning")[:LISTED]
+    for d in listed:
         kind = "WARNING" if d.severity == "warning" else "ERROR"
         print(f"  {kind:7s} {d.to_dict()['quantity']:12s} jumps by {d.jump:+.6g} at {d.master:g} "
               f"{profile.master_unit} ({d.where}; {d.left:.6g} -> {d.right:.6g})")
@@ -134,6 +142,8 @@ def print_check(profile, report, speed=None):
             print(f"          if the slave is meant to advance by {profile.advance:+.6g} {profile.slave_unit} every "
                   f"period (a rotary knife, an indexing table), say so in the cam file: "
                   f"net_stroke = {profile.advance!r}")
+    if len(report.discontinuities) > LISTED:
+        print(f"  ... and {len(report.discontinuities) - LISTED} more (ecam check --json lists every one)")
     orders = ["position", "velocity", "acceleration"]
     ok = [name for k, name in enumerate(orders) if report.continuous(k)]
     print(f"  continuous: {', '.join(ok) if ok else 'nothing'}; "
@@ -227,7 +237,9 @@ def certificate_text(name, table) -> str:
             f"before quantization {r['interpolation_error_counts']:.3g} counts"
         )
     if r["joints_off_points"]:
-        lines.append(f"  joints not on table points (their cost is in the bound): {r['joints_off_points']}")
+        off = r["joints_off_points"]
+        more = f" ... and {len(off) - LISTED} more (--json lists every one)" if len(off) > LISTED else ""
+        lines.append(f"  joints not on table points (their cost is in the bound): {off[:LISTED]}{more}")
     if "net_stroke_counts" in r:
         num, den = r["net_stroke_fraction"]
         stored = f"{num} counts" if den == 1 else f"{num}/{den} counts (exact, rounded once per lookup)"

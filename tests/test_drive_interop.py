@@ -10,13 +10,15 @@ RPDO, streams targets and reads positions by TPDO, gets the following-error EMCY
 fault and re-enables, sees the SYNC supervision fault (EMCY 0x8100), and stops the drive by NMT.
 
 The master is built with cargo (crates from crates.io, pinned by its Cargo.lock; a few seconds
-once the crates are cached); the test skips, naming what is missing, without cargo, without the
-crates and no registry, or without network namespaces.
+once the crates are cached, about 10 s with their download from crates.io); the test skips,
+naming what is missing, without cargo, with a cargo too old for the lock file (before 1.78;
+Debian 12's own is 0.66), without the crates and no registry, or without network namespaces.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -37,10 +39,29 @@ STAGES = ("boot-up after NMT reset communication", "sdo: expedited and segmented
           "fault reset and re-enabled", "sync lost: emcy 0x8100", "nmt stopped")
 
 
+#: The oldest cargo that reads the master's Cargo.lock (lock file version 4, cargo 1.78); an
+#: older one (Debian 12's cargo is 0.66, Rust 1.65) cannot build it at all.
+MIN_CARGO = (1, 78)
+
+
+def _cargo_too_old(version: str) -> str | None:
+    """Why ``cargo --version``'s output names a cargo that cannot build the master, or None."""
+    found = re.match(r"cargo (\d+)\.(\d+)", version)
+    if found is None or (int(found[1]), int(found[2])) >= MIN_CARGO:
+        return None
+    return (f"cargo {found[1]}.{found[2]} is older than {MIN_CARGO[0]}.{MIN_CARGO[1]}, the "
+            f"first that reads {MASTER.name}/Cargo.lock (lock file version 4; rustup installs a "
+            "newer one)")
+
+
 def _build_master() -> str | None:
     """Build the master; None, or why the test cannot run here."""
     if shutil.which("cargo") is None:
         return "cargo is not installed (rustup)"
+    version = subprocess.run(["cargo", "--version"], capture_output=True, text=True, timeout=60)
+    too_old = _cargo_too_old(version.stdout)
+    if too_old:
+        return too_old
     build = None
     for offline in (True, False):  # the crates cached from an earlier build, else the registry
         command = ["cargo", "build", "--locked", "--quiet"] + (["--offline"] if offline else [])
@@ -51,6 +72,13 @@ def _build_master() -> str | None:
     if any(sign in build.stderr for sign in _OFFLINE):
         return f"the crates of {MASTER.name} cannot be fetched: {build.stderr.strip().splitlines()[-1]}"
     pytest.fail(f"cargo build failed in {MASTER}:\n{build.stderr}")
+
+
+def test_a_cargo_too_old_for_the_lock_file_is_a_reason_to_skip():
+    assert _cargo_too_old("cargo 1.95.0 (f2d3ce0bd 2026-03-21)") is None
+    assert _cargo_too_old("cargo 1.78.0 (54d8815d0 2024-03-26)") is None
+    assert _cargo_too_old("cargo 1.77.2 (e52e36006 2024-03-26)").startswith("cargo 1.77 is older than 1.78")
+    assert _cargo_too_old("cargo 0.66.0").startswith("cargo 0.66 is older than 1.78")
 
 
 @pytest.mark.slow

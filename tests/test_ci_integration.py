@@ -352,6 +352,12 @@ def test_effects_listed_when_the_report_has_them(results):
     assert ('<td><code>gear_backlash</code></td><td><span class="badge pass">included</span>'
             "</td><td>wind_up +45 %</td>") in table
     assert '<td><code>encoder_resolution</code></td><td><span class="badge info">left out' in table
+    # A proof whose run moved no check has no check to name: the page says nothing of it.
+    proved = replace(with_effects, summary={**with_effects.summary, "fidelity": "auto",
+                                            "fidelity_proof": {"runs": 10, "check": None,
+                                                               "same_verdicts": True}})
+    assert ('<span class="note">proof: runs 10, same verdicts yes</span>'
+            in html_report([("s.toml", proved, seconds)]))
     _, stiff, _ = results[0]
     without = replace(stiff, summary={k: v for k, v in stiff.summary.items()
                                       if k not in ("effects", "fidelity")}, series={})
@@ -522,6 +528,22 @@ def test_html_report_content(results, scene_dir, page):
     assert " s wall" in timed and "<th class=\"num\">wall</th>" in timed
 
 
+def test_html_figures_carry_their_units(results):
+    # Bus, master, table and mechanics figures once stood bare ("coupling rated torque 60",
+    # "peak percent 43" beside "peak bits 430"): each number now says its unit.
+    _, report, seconds = results[1]
+    data = report.to_dict()
+    page = html_report([("s.toml", _no_plots(report), seconds)])
+    rows = dict(re.findall(r"<tr><td>([^<]*)</td><td>([^<]*)</td></tr>", page))
+    assert rows["bitrate"] == f"{data['bus']['bitrate']} bit/s"
+    assert rows["peak load"] == f"{data['bus']['peak_percent']:.6g} %"
+    assert rows["peak per cycle"] == f"{data['bus']['peak_bits']} bits"
+    assert rows["motor torque limit"] == f"{data['mechanics']['motor_torque_limit']:.6g} N m"
+    assert rows["speed"] == f"{data['master']['speed']:.6g} {data['master']['speed_unit']}"
+    assert rows["max error"].endswith(f" {data['units']['slave']}")
+    assert rows["excitation"].endswith(" Hz") and "speed unit" not in rows
+
+
 def test_the_same_scene_gives_the_same_html_bytes(scene_dir, results):
     again = run_scenes([scene_dir / "a_stiff.toml"])
     assert again[0][1] is not results[0][1]
@@ -669,8 +691,11 @@ def test_plugin_runs_scene_files_as_tests(pytester):
     result.stdout.fnmatch_lines(["ecam: HTML report of 3 scene runs: report.html"])
     cases = {c.get("name"): c for c in ET.parse(pytester.path / "junit.xml").iter("testcase")}
     assert set(cases) == {"stiff", "soft", "typo"}
+    _validate(ET.parse(pytester.path / "junit.xml").getroot())  # no <properties> in a case
     message = cases["soft"].find("failure").get("message")
     assert message.startswith("FAIL  tracking_error: ") and "\nFAIL  wind_up: " in message
+    # The last line: how many failed, and the model's reason without a stray period.
+    assert re.search(r"\nscene soft_coupling: \d of \d+ checks failed \(.*[^.]\)$", message)
     assert cases["stiff"].find("failure") is None
     page = (pytester.path / "report.html").read_text()
     assert "FAILED: 1 of 3 scenes passed, 1 could not run" in page and "bus.bitrat" in page
@@ -780,3 +805,21 @@ def test_ecam_sim_several_scenes_writes_junit_and_html(tmp_path, scene_dir, brok
     one = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(SCENES), "--json"],
                          capture_output=True, text=True, timeout=60)
     assert one.returncode == 2 and len(one.stderr.strip().splitlines()) == 1
+
+
+def test_ecam_sim_several_scenes_takes_fidelity_and_timing(tmp_path, scene_dir, capsys):
+    # --fidelity and --timing were silently dropped once a run had JUnit, HTML or several
+    # scenes: the scene's own fidelity ran. They apply to every scene of the call.
+    from ecam.app.cli import main
+
+    junit, page = tmp_path / "r.xml", tmp_path / "r.html"
+    status = main(["sim", str(scene_dir / "a_stiff.toml"), "--fidelity", "full", "--timing",
+                   "--junit", str(junit), "--html", str(page)])
+    assert status == 0, capsys.readouterr().err
+    out = ET.parse(junit).getroot().find("testsuite").find("system-out").text
+    assert "\nfidelity full" in out and "ideal" not in out
+    assert "Run time (not part of the verdict): " in page.read_text()
+    assert [r.to_dict()["fidelity"] for _, r, _ in
+            run_scenes([scene_dir / "a_stiff.toml"], fidelity="full")] == ["full"]
+    with pytest.raises(InputError, match="fidelity: 'most' should be one of auto, full, ideal"):
+        run_scenes([scene_dir], fidelity="most")

@@ -46,7 +46,11 @@ def test_the_stiff_coupling_passes_and_the_soft_one_fails(demo):
 
 
 def test_the_demo_page_shows_both_scenes_and_fetches_nothing(demo):
-    out, _ = demo
+    out, run = demo
+    # The last line tells the user where the page is.
+    assert run.stdout.rstrip().splitlines()[-1] == (
+        f"ecam demo: open {out / 'report.html'} in a browser for the verdicts, checks, plots "
+        "and scenes")
     page = (out / "report.html").read_text()
     assert "stiff_coupling" in page and "soft_coupling" in page
     assert "1 of 2" in page

@@ -192,10 +192,45 @@ def _flat(value) -> str:
     return _num(value)
 
 
-def _kv_table(data: dict, skip=()) -> str:
-    rows = "".join(f"<tr><td>{_e(str(key).replace('_', ' '))}</td><td>{_e(_flat(value))}</td>"
-                   "</tr>" for key, value in data.items() if key not in skip)
-    return f'<table class="kv"><tbody>{rows}</tbody></table>'
+#: Label and unit of the report's figures whose names do not say them plainly (the rig works
+#: in SI inside: torques in N m); other names ending in a unit (``excitation_hz``) give it up
+#: to the value.
+_LABELS = {"bitrate": ("bitrate", "bit/s"), "budget_bits": ("budget per cycle", "bits"),
+           "peak_bits": ("peak per cycle", "bits"), "peak_percent": ("peak load", "%"),
+           "mean_percent": ("mean load", "%"), "seconds_at_bitrate": ("at the bitrate", "s"),
+           "coupling_rated_torque": ("coupling rated torque", "N m"),
+           "coupling_max_torque": ("coupling max torque", "N m"),
+           "motor_torque_limit": ("motor torque limit", "N m"),
+           "peak_motor_torque": ("peak motor torque", "N m")}
+_SUFFIX_UNITS = (("_hz", "Hz"), ("_percent", "%"), ("_seconds", "s"))
+
+
+def _label_unit(key: str, units: dict) -> tuple[str, str]:
+    """(row label, unit) for a figure: ``excitation_hz`` -> (``excitation``, ``Hz``)."""
+    key = str(key)
+    if key in units:
+        return units[key]
+    for suffix, unit in _SUFFIX_UNITS:
+        if key.endswith(suffix) and len(key) > len(suffix):
+            return key[:-len(suffix)].replace("_", " "), unit
+    return key.replace("_", " "), ""
+
+
+def _kv_table(data: dict, skip=(), units: dict | None = None) -> str:
+    """Name and value rows, numbers with their unit (:data:`_LABELS`, the name's suffix, or
+    ``units``: key -> (label, unit), the report's own, such as the master's speed unit)."""
+    units = {**_LABELS, **(units or {})}
+    rows = []
+    for key, value in data.items():
+        if key in skip:
+            continue
+        label, unit = _label_unit(key, units)
+        number = isinstance(value, (int, float, np.integer, np.floating)) \
+            and not isinstance(value, bool)
+        text = _flat(value) + (f" {unit}" if unit and number and _flat(value) != "\u2013"
+                               else "")
+        rows.append(f"<tr><td>{_e(label)}</td><td>{_e(text)}</td></tr>")
+    return f'<table class="kv"><tbody>{"".join(rows)}</tbody></table>'
 
 
 #: Columns of the effects table, in this order; other keys follow as they come.
@@ -211,7 +246,10 @@ def _effects(data: dict) -> str:
     if data.get("fidelity") is not None:
         head = f"<p>fidelity <b>{_e(data['fidelity'])}</b>"
         proof = data.get("fidelity_proof")
-        if isinstance(proof, dict) and proof:
+        # Unset entries (no check moved: ``check`` None) say nothing: left out, as in JUnit.
+        proof = {k: v for k, v in proof.items() if v not in (None, "", [], {})} \
+            if isinstance(proof, dict) else None
+        if proof:
             head += f'<br><span class="note">proof: {_e(_flat(proof))}</span>'
         head += "</p>"
     if not effects:
@@ -392,11 +430,16 @@ def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> s
                  + _plots(report))
     parts.append(f"<h3>Model and effects</h3><p><b>{_e(report.model)}</b>: "
                  f"{_e(report.model_reason)}</p>" + _effects(data))
+    # The report's own units: the master's speed and period, the table's error (slave units).
+    own_units = {"speed": ("speed", master.get("speed_unit", "")),
+                 "period": ("period", units.get("master", "")),
+                 "max_error_units": ("max error", units.get("slave", ""))}
     parts.append('<div class="grid"><div><h3>Bus and faults</h3>' + _bus_and_faults(data)
                  + "</div>")
     for key in ("master", "table", "mechanics"):
         if isinstance(data.get(key), dict):
-            parts.append(f"<div><h3>{key.capitalize()}</h3>{_kv_table(data[key])}</div>")
+            parts.append(f"<div><h3>{key.capitalize()}</h3>"
+                         f"{_kv_table(data[key], ('speed_unit',), own_units)}</div>")
     parts.append("</div>")
     parts.append("<h3>Scene as run</h3>" + _scene_as_run(scene))
     if timing:

@@ -97,21 +97,24 @@ def scene_files(paths) -> list[Path]:
     return found
 
 
-def _load(items) -> list[tuple[object, object]]:
+def _load(items, fidelity: str | None = None) -> list[tuple[object, object]]:
     """[(what the caller named, Scene or the EcamError loading it raised)] for files,
-    directories and Scene objects. A missing path or an empty directory raises at once."""
+    directories and Scene objects, each with ``fidelity`` when given. A missing path or an
+    empty directory raises at once."""
     from hil_sim.scene import Scene, load_scene
 
     loaded = []
     for item in items:
         if isinstance(item, Scene):
-            loaded.append((item, item))
+            loaded.append((item, item if fidelity is None else item.with_fidelity(fidelity)))
             continue
         for path in scene_files([item]):
             try:
-                loaded.append((path, load_scene(path)))
+                scene = load_scene(path)
             except EcamError as exc:  # a broken scene file: reported, the others still run
                 loaded.append((path, exc))
+                continue
+            loaded.append((path, scene if fidelity is None else scene.with_fidelity(fidelity)))
     return loaded
 
 
@@ -130,7 +133,8 @@ def _run_one(scene) -> tuple[object, float]:
     return outcome, time.perf_counter() - start
 
 
-def run_scenes(paths, jobs: int = 1, progress=None) -> list[tuple[object, object, float]]:
+def run_scenes(paths, jobs: int = 1, progress=None,
+               fidelity: str | None = None) -> list[tuple[object, object, float]]:
     """Run scenes and return their results in the order given.
 
     Parameters
@@ -141,6 +145,8 @@ def run_scenes(paths, jobs: int = 1, progress=None) -> list[tuple[object, object
         Number of worker processes; 1 runs in this process.
     progress : callable, optional
         Called with one line of text per finished scene (in the order they finish).
+    fidelity : {"auto", "full", "ideal"}, optional
+        Run every scene with this fidelity instead of its own (``ecam sim --fidelity``).
 
     Returns
     -------
@@ -152,12 +158,12 @@ def run_scenes(paths, jobs: int = 1, progress=None) -> list[tuple[object, object
     Raises
     ------
     InputError
-        ``jobs`` below 1, a path that does not exist or a directory without a scene file
-        (nothing is run).
+        ``jobs`` below 1, a path that does not exist, a directory without a scene file or
+        an unknown ``fidelity`` (nothing is run).
     """
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"jobs: {jobs!r} should be an integer >= 1")
-    loaded = _load(paths)
+    loaded = _load(paths, fidelity)
     results: list = [None] * len(loaded)
     total = len(loaded)
     done = 0

@@ -80,20 +80,23 @@ def format_search(search: dict) -> str:
 
 
 def sim_many(args) -> int:
-    """Several scenes: a progress line each, a summary table, JUnit XML and HTML on request."""
+    """Several scenes: a progress line each, a summary table, JUnit XML and HTML on request.
+    ``--fidelity`` applies to every scene; ``--timing`` adds the wall times to the HTML page."""
     if args.json or args.plot or args.find_max_speed:
         raise InputError("--json, --plot and --find-max-speed take one scene file; "
                          f"{len(args.scene)} scene argument(s) given")
     for option in (args.junit, args.html):
         if option is not None and not Path(option).resolve().parent.is_dir():
             raise InputError(f"output {option!r}: its directory does not exist")
-    results = run_scenes(args.scene, args.jobs, progress=lambda line: print(line, file=sys.stderr))
+    results = run_scenes(args.scene, args.jobs,
+                         progress=lambda line: print(line, file=sys.stderr),
+                         fidelity=getattr(args, "fidelity", None))
     print(summary_table(results))
     outputs = {}
     if args.junit:
         outputs[Path(args.junit)] = junit_xml(results)
     if args.html:
-        outputs[Path(args.html)] = html_report(results)
+        outputs[Path(args.html)] = html_report(results, timing=getattr(args, "timing", False))
     try:
         write_files(outputs)
     except OSError as exc:

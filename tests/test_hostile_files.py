@@ -37,7 +37,7 @@ def symlink_loop(tmp_path, name):
     return a
 
 
-@pytest.mark.parametrize("command", ["check", "compile"])
+@pytest.mark.parametrize("command", ["check", "compile", "sim"])
 def test_device_is_refused_not_read(command):
     assert_one_line(run_cli(command, "/dev/zero"), "should be a regular file")
 

@@ -71,7 +71,8 @@ def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print the report as JSON (deterministic: same scene, same bytes)")
     parser.add_argument("--timing", action="store_true",
-                        help="add the wall-clock timing (real-time factor) to the JSON")
+                        help="add the wall-clock timing (real-time factor) to the JSON (one scene) "
+                             "or to the HTML page (--html)")
     parser.add_argument("--plot", metavar="FILE.png",
                         help="save tracking error, coupling torque and following error plots")
     parser.add_argument("--find-max-speed", action="store_true",
@@ -151,7 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_export)
 
     p = sub.add_parser("demo", help="the main job on the built-in seed cams")
-    p.add_argument("-o", "--output", default="ecam-demo", help="directory for plots and tables")
+    p.add_argument("-o", "--output", default="ecam-demo",
+                   help="directory for plots, tables and report.html (default: ecam-demo)")
     p.set_defaults(func=_demo)
 
     p = sub.add_parser("bench", help="speed against error of the table kinds and the rig")

@@ -20,7 +20,9 @@ from .multi import exit_status, run_scenes, summary_table
 
 def run_sim(args: argparse.Namespace) -> int:
     """`ecam sim`: one scene prints its report (text or JSON); several run through :func:`sim_many`."""
-    single = len(args.scene) == 1 and Path(args.scene[0]).suffix == ".toml"
+    # one path that is not a directory is one scene, whatever its name (a bad path is then one
+    # `ecam: error:` line, not a batch of one ERROR row)
+    single = len(args.scene) == 1 and not Path(args.scene[0]).is_dir()
     if single and not (args.junit or args.html or args.jobs != 1):
         args.scene = args.scene[0]
         return sim_command(args)

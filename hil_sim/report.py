@@ -91,6 +91,18 @@ class Check:
         return text + (f"; {self.detail}" if self.detail else "")
 
 
+def _relative_part(proof: dict) -> str:
+    """The proof's value comparison: how far the furthest check lies from the full model's."""
+    if "largest_relative" not in proof:
+        return ""
+    share = proof["largest_relative"]
+    text = (", a value missing where the full model has one" if share is None else
+            f", values within {100 * share:.3g} % of the full model's")
+    if proof.get("relative_check"):
+        text += f" ({proof['relative_check']})"
+    return text if proof.get("within_relative", True) else text + " (OUTSIDE THE PROOF)"
+
+
 def check(name: str, value, limit, unit: str, detail: str = "", window: dict | None = None) -> Check:
     """A check that passes when ``value <= limit`` (always, when ``limit`` is None)."""
     value = None if value is None else float(value)
@@ -170,14 +182,20 @@ class Report:
         head = f"effects (fidelity {self.summary.get('fidelity')}"
         proof = self.summary.get("fidelity_proof")
         if proof:
-            head += (f", measured on {proof['runs']} bus-free runs; reduced against full model: "
+            cycles = f" of {proof['cycles']} cycles" if proof.get("cycles") else ""
+            head += (f", measured on {proof['runs']} bus-free runs{cycles}; reduced against full model: "
                      f"largest difference {100 * proof['largest_difference']:.3g} % of a limit"
                      + (f" ({proof['check']})" if proof.get("check") else "")
+                     + _relative_part(proof)
                      + (", same verdicts" if proof["same_verdicts"] else ", VERDICTS DIFFER"))
         lines = [head + "):"]
         for e in effects:
             state = "in " if e["included"] else "out"
-            lines.append(f"  {state}  {e['name']}: {e['value']}; {e['why']}")
+            source = e.get("source") or ""
+            # whose value it is: the scene's, or the rig's documented default (hil_sim.effects)
+            origin = ("" if source == e["why"] else " (scene)" if source == "scene" else
+                      " (default)" if source.startswith("default") else "")
+            lines.append(f"  {state}  {e['name']}: {e['value']}{origin}; {e['why']}")
         return lines
 
     def to_text(self) -> str:

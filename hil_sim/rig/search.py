@@ -11,7 +11,9 @@ the bus-free path (:mod:`hil_sim.rig.fast`) with every effect on (the full model
 default model matches within its proof). The rig is deterministic, but close to a limit a check
 does not move smoothly with the speed (sub-count set points, where in the cycle the worst sample
 falls): once the bracket is a few percent wide the search measures that scatter of the limiting
-check across the bracket and stops refining at the speed resolution it allows. The speed found
+check across the bracket (a check with a limit of 0 in its own unit, and where the verdict flips
+back, the speeds it flips over) and stops refining at the speed resolution it allows; the
+samples narrow the bracket, and a speed is never given above a trial that failed. The speed found
 is then confirmed over CANopen with the scene's own fidelity; should it fail there, the search
 steps down.
 """
@@ -142,9 +144,13 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
     while low is not None and high is not None and len(runs) < max_runs:
         if not measured and high - low <= _NOISE_BRACKET * low:
             measured = True
-            noise = _resolution(trial, low, high, reports)
-            if noise is not None and noise[0] > resolution:
-                resolution, why = noise
+            noise, note, samples = _resolution(trial, low, high, reports)
+            if noise is not None and noise > resolution:
+                resolution, why = noise, note
+            elif note is not None:
+                why += f" ({note})"
+            # the samples narrow the bracket: the first failing one, the highest passing below it
+            low, high = _narrowed(low, high, samples)
         if high - low <= max(resolution, tolerance * low):
             break
         middle = 0.5 * (low + high)
@@ -152,6 +158,10 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
             low = middle
         else:
             high = middle
+    if low is not None:
+        low, high, flipped = _monotone(runs, low, high)
+        if flipped is not None and flipped[0] > resolution:
+            resolution, why = flipped
     confirmed = False
     if low is not None:
         width = max(high - low if high is not None else tolerance * low, tolerance * low)
@@ -206,31 +216,82 @@ def _limiting(report) -> object:
 
 
 def _resolution(trial, low: float, high: float, reports: dict):
-    """(speed resolution, why) from the scatter of the limiting check across the bracket:
-    trials at evenly spaced speeds, a straight line through its ratio to the limit, twice the
-    residual's deviation over the line's slope; None when it cannot be measured."""
+    """(speed resolution or None, why, samples) from the scatter of the limiting check across
+    the bracket: trials at evenly spaced speeds (``samples``: (speed, passed) of each, the
+    trials' own verdicts).
+
+    Two measures, the coarser one wins: a straight line through the check's value (its ratio to
+    the limit; for a limit of 0, its value in its own unit, as the fidelity's comparison reads
+    it: a percent point of clamped cycles, one fault), twice the residual's deviation over the
+    line's slope; and where the verdict flips back (a failing speed below a passing one), the
+    span of the speeds where it flips plus the samples' spacing. None when neither shows a
+    scatter (``why`` then says what was measured)."""
     speeds = np.linspace(low, high, _NOISE_SAMPLES + 2)[1:-1]
+    spacing = float(speeds[1] - speeds[0])
     failing = reports.get((high, "fast"))
     limiting = _limiting(failing) if failing is not None else None
-    if limiting is None or not limiting.limit:
-        return None  # a check without a scale (a limit of 0): nothing to measure it against
+    if limiting is None or limiting.limit is None:
+        return None, None, []
     name = limiting.name
-    ratios = []
+    scale = abs(limiting.limit) if limiting.limit else 1.0
+    values, samples = [], []
     for speed in speeds:
         report = trial(float(speed))
         if report is None:
-            return None
-        ratios.append(report.check(name).ratio)
-    ratios = np.array(ratios, dtype=float)
-    if not np.all(np.isfinite(ratios)):
-        return None
-    slope, offset = np.polyfit(speeds, ratios, 1)
-    scatter = float(np.std(ratios - (slope * speeds + offset), ddof=2))
-    if slope <= 0.0 or scatter == 0.0:
-        return None
-    resolution = 2.0 * scatter / slope
-    return resolution, (f"the scatter of {name} between neighbouring speeds: +-{100 * scatter:.2g} % "
-                        f"of its limit, worth {resolution:.3g} in speed")
+            return None, None, samples
+        values.append(report.check(name).value)
+        samples.append((float(speed), report.passed))
+    measures = []
+    flips = [s for s, ok in samples if ok and any(f < s for f, fine in samples if not fine)]
+    if flips:
+        first_fail = min(f for f, fine in samples if not fine)
+        span = max(flips) - first_fail + spacing
+        measures.append((span, f"the verdict flips back between neighbouring speeds: fails at "
+                               f"{first_fail:.6g}, passes at {max(flips):.6g}, worth {span:.3g} "
+                               f"in speed"))
+    values = np.array([math.nan if v is None else v / scale for v in values], dtype=float)
+    what = "of its limit" if limiting.limit else (
+        "percent points" if limiting.unit == "%" else limiting.unit)
+    if np.all(np.isfinite(values)):
+        slope, offset = np.polyfit(speeds, values, 1)
+        scatter = float(np.std(values - (slope * speeds + offset), ddof=2))
+        if slope > 0.0 and scatter > 0.0:
+            amount = f"{100 * scatter:.2g} % {what}" if limiting.limit else f"{scatter:.2g} {what}"
+            measures.append((2.0 * scatter / slope,
+                             f"the scatter of {name} between neighbouring speeds: +-{amount}, "
+                             f"worth {2.0 * scatter / slope:.3g} in speed"))
+    if measures:
+        resolution, why = max(measures)
+        return resolution, why, samples
+    return None, (f"{name} showed no scatter over {len(samples)} trials {spacing:.3g} apart"), samples
+
+
+def _monotone(runs: list, low: float, high: float | None):
+    """(low, high, (resolution, why) or None): when some bus-free trial failed below a speed
+    that passed (the verdict flips back near the limit), the answer is the highest passing
+    speed below the lowest failing one, and the speeds the verdict flips over are the
+    resolution the search can claim."""
+    fast = [(abs(r["speed"]), r["passed"]) for r in runs if r["path"] == "fast"]
+    fails = [s for s, ok in fast if not ok]
+    if not fails or low <= min(fails):
+        return low, high, None
+    first_fail = min(fails)
+    below = [s for s, ok in fast if ok and s < first_fail]
+    if not below:
+        return low, high, None
+    span = low - max(below)
+    return max(below), first_fail, (span, (
+        f"the verdict flips back near the limit: a trial failed at {first_fail:.6g} and one "
+        f"passed at {low:.6g}, so the speed is given below the failure, to {span:.3g}"))
+
+
+def _narrowed(low: float, high: float, samples: list) -> tuple[float, float]:
+    """The bracket after the noise samples: the first failing sample is the new failing speed,
+    the highest passing one below it the new passing speed."""
+    fails = [s for s, ok in samples if not ok]
+    first_fail = min(fails, default=high)
+    passes = [s for s, ok in samples if ok and s < first_fail]
+    return max(passes, default=low), first_fail
 
 
 def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, reports) -> dict:

@@ -249,7 +249,9 @@ def summary(run: PreparedRun, record: Record) -> dict:
         "master": {"profile": scene.master.profile, "speed": plan.speed_units,
                    "period": profile.master_period,
                    "speed_unit": f"{units['master']}/s", "cam_frequency_hz": cam_hz,
-                   "periods": ran * plan.cycle_s * cam_hz},
+                   # the master's travel, not the cruise speed times the time: a ramp covers less
+                   "periods": (abs(float(plan.master_units[ran - 1]) - plan.start_units)
+                               / profile.master_period if ran else 0.0)},
         "table": {"interp": table.interp, "points": table.points, "bytes": table.nbytes,
                   "crc32": f"0x{table.crc32:08x}", "master_counts": table.master_counts,
                   "slave_counts_per_unit": run.cam.scale,

@@ -41,6 +41,7 @@ class Plan:
     master_units: np.ndarray     # true master position at the end of cycle k [master units]
     initial_counts: int
     speed_units: float           # cruise master speed [master units/s]
+    start_units: float           # true master position at t = 0 [master units]
     sync_offsets: np.ndarray     # SYNC jitter of cycle k [s]
 
 
@@ -155,7 +156,8 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
                 targets=np.asarray(targets, dtype=np.int64), velocities=np.asarray(velocities),
                 reference_units=np.asarray(reference, dtype=float),
                 master_units=np.asarray(master_true, dtype=float) / per_unit,
-                initial_counts=initial, speed_units=speed_units, sync_offsets=jitter)
+                initial_counts=initial, speed_units=speed_units,
+                start_units=float(master.position(0.0)) / per_unit, sync_offsets=jitter)
 
 
 def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float):
@@ -178,6 +180,7 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
         def slave_counts(m, order):
             return profile(m / per_unit, order) * scale / per_unit**order
 
+        _check_engagement(spec, profile, speed / per_unit)
         try:
             slave_plan = cam_in(slave_counts, spec.slave_start * scale, 0.0, speed,
                                 spec.engage_at * per_unit, spec.max_velocity * scale,
@@ -185,14 +188,31 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
         except (InputError, SimulationError) as exc:
             # in the scene's words: its fields, its units, the speed tried (counts inside)
             unit = profile.master_unit
+            why = str(exc).splitlines()[0] if str(exc) else repr(exc)
             raise SimulationError(
                 f"master.profile 'cam_in': no cam-in onto the cam at master.engage_at "
                 f"{spec.engage_at:g} {unit} with the master at {speed / per_unit:.6g} {unit}/s "
                 f"from master.slave_start {spec.slave_start:g} {profile.slave_unit} within "
                 f"master.max_velocity, slave_max_acceleration, slave_max_jerk: "
-                f"{str(exc).splitlines()[0] if str(exc) else exc!r} (positions in counts)") from None
+                f"{why}{' (slave positions in counts)' if 'position' in why else ''}") from None
         return slave_plan.master, slave_plan
     return ConstantSpeed(speed), None
+
+
+def _check_engagement(spec, profile, speed_units: float) -> None:
+    """The slave limits a cam-in must allow at the engagement, checked in the scene's fields and
+    units (before the plan, which works in counts): the cam's velocity and acceleration at
+    master.engage_at with the master at the speed tried."""
+    at, master_unit, slave_unit = spec.engage_at, profile.master_unit, profile.slave_unit
+    for field, order, limit, what, per in (
+            ("master.max_velocity", 1, spec.max_velocity, "velocity", "s"),
+            ("master.slave_max_acceleration", 2, spec.slave_max_acceleration, "acceleration", "s^2")):
+        need = abs(float(profile(at, order)) * speed_units**order)
+        if need > limit:
+            raise SimulationError(
+                f"master.profile 'cam_in': {field} {limit:g} {slave_unit}/{per} should be >= the "
+                f"cam's {what} {need:.6g} {slave_unit}/{per} at master.engage_at {at:g} "
+                f"{master_unit} with the master at {speed_units:.6g} {master_unit}/s")
 
 
 def cruise_s(scene: Scene, cam: CompiledCam) -> float:

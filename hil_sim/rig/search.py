@@ -298,8 +298,9 @@ def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, r
     unit = profile.master_unit
     failed_report = reports.get((high, "fast")) if high is not None else None
     limiting = _limiting(failed_report) if failed_report is not None else None
-    failed = next((r["failed"] for r in runs if high is not None and abs(r["speed"]) == high
-                   and r["path"] == "fast"), [])
+    failing_run = next((r for r in runs if high is not None and abs(r["speed"]) == high
+                        and r["path"] == "fast"), {})
+    failed = failing_run.get("failed", [])
     speed = None if low is None else sign * low
     trial_seconds = None
     if low is not None:
@@ -310,7 +311,9 @@ def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, r
         "periods_per_minute": None if speed is None else 60.0 * speed / profile.master_period,
         "failing_speed": None if high is None else sign * high,
         "failed_checks": failed,
-        "limiting_check": None if limiting is None else limiting.line(),
+        # a speed at which the scene could not run at all is limited by why, in its words
+        "limiting_check": (limiting.line() if limiting is not None else
+                           f"cannot run: {failing_run['reason']}" if "reason" in failing_run else None),
         "resolution": resolution, "resolution_reason": why,
         "periods_at_cruise": PERIODS_AT_CRUISE, "trial_seconds": trial_seconds,
         "confirmed": confirmed, "runs": runs,

@@ -446,12 +446,19 @@ def test_master_positions_outside_a_checks_window_are_greyed():
     windowed = Windowed(*(getattr(tracking, f) for f in ("name", "value", "limit", "passed",
                                                           "unit", "detail")))
     report = replace(report, checks=[windowed if c is tracking else c for c in report.checks])
-    ax = next(a for a in report_figure(report).axes
-              if a.get_title(loc="left").startswith("Tracking error"))
+    fig = report_figure(report)
+    ax = next(a for a in fig.axes if a.get_title(loc="left").startswith("Tracking error"))
     spans = [p.get_path().transformed(p.get_patch_transform()).vertices[:, 0]
              for p in ax.patches]
-    assert len(spans) == 1 and "not checked" in ax.get_legend_handles_labels()[1]
+    labels = ax.get_legend_handles_labels()[1]
+    assert len(spans) == 1 and "outside it: not checked" in labels
+    assert "tracking window 330..30 deg" in labels  # the window (a knife's cut zone) is named
     assert (spans[0].min(), spans[0].max()) == (30.0, 330.0)  # the window spans the seam
+    for other in fig.axes:  # its edges on every panel, so the cut zone shows on the torques too
+        if other.get_visible():
+            edges = sorted(line.get_xdata()[0] for line in other.lines if line.get_linestyle() == "--"
+                           and line.get_color() == "#8250df")
+            assert edges == [30.0, 330.0], other.get_title(loc="left")
 
 
 @pytest.mark.slow

@@ -56,6 +56,7 @@ _LIMIT = "#cf222e"
 _PASSED = "#1a7f37"
 _BAND = "#b6c2cf"
 _GRID = "#d0d7de"
+_WINDOW = "#8250df"  # the tracking window (cut zone) edges
 _MUTED = "#57606a"
 
 # Metadata matplotlib writes by default that would make the bytes depend on the date or the
@@ -311,6 +312,7 @@ def report_figure(report: Report, width_in: float = 11.0):
     nbins = int(max(8, min(BAND_BINS, per_period // 2)))
     bins = np.clip((position / period * nbins).astype(int), 0, nbins - 1)
     legend_periods: dict[int, str] = {}
+    window = _tracking_window(report, period)
     for ax, panel in zip(axes, panels):
         y = panel.values
         worst_period = int(periods[panel.worst]) if panel.worst is not None else None
@@ -328,7 +330,7 @@ def report_figure(report: Report, width_in: float = 11.0):
             ax.plot(x, v, lw=1.3 if k == worst_period and count > 1 else 1.0, color=colour)
             legend_periods.setdefault(k, colour)
         _draw_limits(ax, panel, y)
-        _shade_outside_window(ax, panel, period)
+        _mark_window(ax, panel, period, window, units.get("master", ""))
         _mark_worst(ax, panel, position, periods, count, units)
         if panel.clamped is not None and panel.clamped.any():
             ax.plot(position[panel.clamped], y[panel.clamped], "|", ms=8, mew=1.2,
@@ -396,19 +398,34 @@ def _draw_limits(ax, panel: _Panel, y) -> None:
             ax.axhline(-value, color=_LIMIT, ls=style, lw=1.0)
 
 
-def _shade_outside_window(ax, panel: _Panel, period: float) -> None:
-    """Grey out the master positions a check does not look at, when the check says which it
-    does: ``check.to_dict()["window"]["master"] = [start, end]`` (master units; the window
-    may span the seam, start > end)."""
-    if panel.check is None:
-        return
-    window = panel.check.to_dict().get("window")
+def _tracking_window(report, period: float):
+    """(start, end) of the master window the tracking check looks at (master units within the
+    period; start > end when it spans the seam, as a knife's cut zone does), or None."""
+    try:
+        window = report.check("tracking_error").to_dict().get("window")
+    except KeyError:
+        return None
     master = window.get("master") if isinstance(window, dict) else None
     if not master or len(master) != 2:
+        return None
+    return tuple(float(v) % period for v in master)
+
+
+def _mark_window(ax, panel: _Panel, period: float, window, unit: str) -> None:
+    """The tracking window (a knife's cut zone) on every panel: its edges as dashed lines, named
+    on the tracking panel, whose master positions outside it are greyed out (not checked)."""
+    if window is None:
         return
-    start, end = (float(v) % period for v in master)
+    start, end = window
+    tracking = panel.check is not None and panel.check.name == "tracking_error"
+    for edge in (start, end):
+        ax.axvline(edge, color=_WINDOW, lw=0.9, ls="--",
+                   label=f"tracking window {start:g}..{end:g} {unit}".rstrip()
+                   if tracking and edge == start else None)
+    if not tracking:
+        return
     outside = [(end, start)] if start > end else [(0.0, start), (end, period)]
-    label = "not checked"
+    label = "outside it: not checked"
     for low, high in outside:
         if high > low:
             ax.axvspan(low, high, color=_GRID, alpha=0.45, lw=0, label=label)

@@ -217,16 +217,19 @@ def test_coupling_and_wind_up_checks_on_a_rigid_run():
     wind_up = analysis.wind_up_check(run, record(peak_twist=np.full(4, 1.0)), peak)
     # the rigid model measured no twist: peak torque / stiffness, not the (ignored) twist
     assert wind_up.value == pytest.approx(np.degrees(7.0 / stiffness), rel=1e-12)
-    assert wind_up.detail == "peak torque / stiffness"
-    twisted = analysis.wind_up_check(run, record(model="two_mass", peak_twist=np.full(4, 1e-3)),
-                                     peak)
+    # where: at the peak torque it came from (cycle 1)
+    assert wind_up.detail == f"peak torque / stiffness, {analysis._at_master(run, 1)}, cycle 1"
+    twisted = analysis.wind_up_check(run, record(model="two_mass",
+                                                 peak_twist=np.array([1e-4, 2e-4, 1e-3, 5e-4])), peak)
     assert twisted.value == pytest.approx(np.degrees(1e-3), rel=1e-12)
+    assert twisted.detail == f"coupling twist, {analysis._at_master(run, 2)}, cycle 2"
 
 
 def test_saturation_bus_and_faults_checks():
     run = prepared()
     saturation = analysis.motor_saturation_check(run, record(saturated=np.array([0, 1, 0, 1.0])))
     assert saturation.value == 50.0 and not saturation.passed
+    assert saturation.detail.endswith(f", first {analysis._at_master(run, 1)}, cycle 1")
     faulted = record(emcy=[(0.001, 0x0000), (0.002, 0x8611)])
     faults = analysis.faults_check(faulted)
     assert faults.value == 1 and faults.detail == "0x8611 at 0.002 s" and not faults.passed

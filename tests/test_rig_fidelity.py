@@ -108,6 +108,8 @@ def test_ideal_fidelity_models_no_effect_and_picks_the_model_by_rule():
     assert report.model == "rigid" and "2641 Hz" in report.model_reason
     # the rule weighs the controller's rate: the 2.6 kHz mode lies above its Nyquist frequency
     assert "above the controller's Nyquist frequency 2000 Hz" in report.model_reason
+    # said once, as one sentence
+    assert report.model_reason.count("rigid model") == 1 and not report.model_reason.endswith("..")
 
 
 def test_a_scene_can_force_the_model():

@@ -155,9 +155,14 @@ def wind_up_check(run: PreparedRun, record: Record, peak: mechanics.CouplingChec
     """Coupling wind-up: the two-mass model's twist, or peak torque / stiffness when the
     coupling ran as rigid (stiff enough for the rigid model)."""
     twist = record.peak_twist if record.model == "two_mass" else None
-    return _from_mechanics(mechanics.wind_up_check(
-        run.scene.limits.wind_up_deg, stiffness=run.mechanics.coupling_stiffness,
-        peak_torque=peak.value, twist=twist))
+    result = mechanics.wind_up_check(run.scene.limits.wind_up_deg,
+                                     stiffness=run.mechanics.coupling_stiffness,
+                                     peak_torque=peak.value, twist=twist)
+    if run.mechanics.coupling_stiffness is None or not record.cycles:
+        return _from_mechanics(result)
+    # where: the largest twist, or (rigid) the peak torque it was computed from
+    worst = int(np.argmax(np.abs(twist))) if twist is not None else peak.sample
+    return _from_mechanics(result, f"{result.detail}, {_at_master(run, worst)}, cycle {worst}")
 
 
 def resonance_excitation_check(run: PreparedRun) -> Check:
@@ -186,8 +191,12 @@ def motor_saturation_check(run: PreparedRun, record: Record) -> Check:
     """Share of cycles with the motor torque clamped at the drive's limit."""
     saturation = 100.0 * float(np.mean(record.saturated)) if record.cycles else 0.0
     limit = run.mechanics.motor_torque_limit
+    detail = f"cycles with the torque clamped at {limit} N m" if limit else "no torque limit"
+    clamped = np.flatnonzero(record.saturated)
+    if clamped.size:  # where: the first cycle clamped
+        detail += f", first {_at_master(run, int(clamped[0]))}, cycle {int(clamped[0])}"
     return check("motor_saturation", saturation, run.scene.limits.motor_saturation_percent, "%",
-                 f"cycles with the torque clamped at {limit} N m" if limit else "no torque limit")
+                 detail)
 
 
 def injected(record: Record) -> str:

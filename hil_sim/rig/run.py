@@ -181,7 +181,8 @@ def describe_selection(report: Report, selection: Selection) -> None:
         report.model_reason = "rigid model: no coupling stiffness given, motor and load move as one."
     else:
         kind = "two-mass model" if report.model == "two_mass" else "rigid model"
-        report.model_reason = f"{kind}: {compliance.why}."
+        why = compliance.why.rstrip(".")
+        report.model_reason = f"{why}." if why.startswith(kind) else f"{kind}: {why}."
 
 
 def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None,

@@ -407,9 +407,6 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     cam_mode = top.choice("cam_mode", CAM_MODES, default="controller")
     fidelity = top.choice("fidelity", FIDELITIES, default="auto")
     master = _master(top)
-    if cam_mode == "drive" and master.profile == "cam_in":
-        raise top.error("cam_mode: 'drive' should be 'controller' for master.profile 'cam_in' "
-                        "(the controller plans the cam-in)")
     cam_spec = _cam(top, base, cam)
     drive = _drive(top)
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,

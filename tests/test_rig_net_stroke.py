@@ -79,13 +79,45 @@ def test_a_drum_turning_backwards(knife):
     assert report.passed, report.to_text()
 
 
-def test_cam_in_onto_the_moving_knife(knife):
+def _cam_in_knife(knife, cam_mode):
     master = replace(knife.master, profile="cam_in", max_acceleration=None, max_jerk=None,
                      engage_at=200.0, slave_start=0.0, max_velocity=2000.0,
                      slave_max_acceleration=40000.0, slave_max_jerk=4e6)
-    report = _fast(replace(knife, master=master, limits=replace(knife.limits, settle_s=1.0),
-                           duration=DurationSpec(seconds=3.0)))
+    return replace(knife, master=master, cam_mode=cam_mode,
+                   limits=replace(knife.limits, settle_s=1.0), duration=DurationSpec(seconds=3.0))
+
+
+@pytest.mark.parametrize("cam_mode", ["controller", "drive"])
+def test_cam_in_onto_the_moving_knife(knife, cam_mode):
+    """From rest onto the moving cam, through the wraps: controller-side the controller streams
+    the approach then the cam; drive-side it streams the approach as CSP set points with cam mode
+    0 and the master position, and the drive's own cam takes over at the engagement (cam mode 1
+    in the same RPDO), on a master it has watched all along."""
+    report = _fast(_cam_in_knife(knife, cam_mode))
     assert report.passed, report.to_text()
+    assert report.summary["master"]["periods"] > 5.0
+
+
+def test_a_drive_side_cam_in_over_canopen_is_the_bus_free_run_and_joins_without_a_jump(knife):
+    scene = _cam_in_knife(knife, "drive")
+    over_bus, bus_free = run_scene(scene), _fast(scene)
+    assert over_bus.passed, over_bus.to_text()
+    for name in ("following_error", "tracking_error", "coupling_torque", "peak_motor_torque"):
+        assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
+    # the hand-over: RPDO2 (set points) before the engagement, RPDO3 (master, mode) throughout;
+    # the drive's cam takes over where the controller's set points end, so the motor follows as
+    # it does when the controller streams the cam itself: within a count, around the engagement
+    # and over the whole run (the drive knows the master's speed only from whole counts)
+    controller = _fast(replace(scene, cam_mode="controller"))
+    engage_s = cruise_s(scene, compile_cam(scene))
+    near = np.abs(over_bus.series["time_s"] - engage_s) <= 0.01
+    drive_error, controller_error = (r.series["following_error"] for r in (over_bus, controller))
+    assert near.any() and np.abs(controller_error[near]).max() >= 10  # the approach ends working
+    assert np.abs(drive_error[near] - controller_error[near]).max() <= 1
+    assert np.abs(drive_error - controller_error).max() <= 1
+    # until the engagement both RPDOs are on the bus: more frames than the controller-side run
+    frames = over_bus.summary["bus"]["frames"]
+    assert frames > run_scene(replace(scene, cam_mode="controller")).summary["bus"]["frames"]
 
 
 def test_the_start_up_transient_is_left_out_only_when_asked(knife):

@@ -139,8 +139,8 @@ class CamSlot:
             raise SdoAbortedError(ABORT_INVALID_VALUE)
         if mode == CAM_MODE_DRIVE_SIDE and self.active_table is None:
             raise SdoAbortedError(ABORT_DEVICE_STATE)
-        if mode != self.values[CAM_MODE]:
-            self.master_observer = ()
+        # the master observer goes on: it watches the master in either mode (observe), so a cam
+        # engaged on a moving master starts at its speed
         self.values[CAM_MODE] = mode
 
     @property
@@ -149,9 +149,10 @@ class CamSlot:
         return self.values[CAM_MODE] == CAM_MODE_DRIVE_SIDE and self.active_table is not None
 
     # ------------------------------------------------------------------------- the cycle
-    def target(self, cycle_s: float) -> tuple[int, float]:
-        """Target [counts] and velocity offset [counts/s] from the active cam at the master
-        position 0x2003, for an interpolation period of ``cycle_s``."""
+    def observe(self, cycle_s: float) -> int:
+        """Take this cycle's master position 0x2003 into the speed observer; return it unwrapped
+        from INTEGER32 [counts]. The drive calls it every cycle a table is active, in cam mode
+        0 too: the controller of a cam-in sends the master during its approach."""
         raw = self.values[MASTER_POSITION]
         observer = self.master_observer
         if observer:
@@ -159,12 +160,18 @@ class CamSlot:
             master = previous + wrap_int32(raw - wrap_int32(previous))
         else:
             master = raw
-        self.master_observer = observer = _observe(observer, master, cycle_s)
+        self.master_observer = _observe(observer, master, cycle_s)
+        return master
+
+    def target(self, cycle_s: float) -> tuple[int, float]:
+        """Target [counts] and velocity offset [counts/s] from the active cam at the master
+        position 0x2003, for an interpolation period of ``cycle_s``."""
+        master = self.observe(cycle_s)
         # The velocity offset belongs to the target's time, as a controller's does: the cam's
         # slope there times the observed master speed (a scalar lookup takes the table's
         # pure-integer path: no numpy overhead per cycle).
         target, slope = self.active_table.lookup(master, with_slope=True)
-        velocity = slope * observer[4] / _SLOPE_ONE
+        velocity = slope * self.master_observer[4] / _SLOPE_ONE
         return target, velocity
 
 

@@ -393,11 +393,14 @@ class VirtualDrive:
         if state in ENERGIZED:
             if (state == OPERATION_ENABLED
                     and values[MODES_OF_OPERATION_DISPLAY] == CYCLIC_SYNCHRONOUS_POSITION):
-                if self.cam.drives_the_target:
-                    target, velocity = self.cam.target(self.cycle_s)
+                cam = self.cam
+                if cam.drives_the_target:
+                    target, velocity = cam.target(self.cycle_s)
                     values[TARGET_POSITION] = wrap_int32(target)
                     values[VELOCITY_OFFSET] = saturate_int32(round(velocity))
                 else:
+                    if cam.active_table is not None:  # a cam to engage: follow the master
+                        cam.observe(self.cycle_s)
                     target, velocity = values[TARGET_POSITION], values[VELOCITY_OFFSET]
             elif state == OPERATION_ENABLED:
                 target, velocity = values[TARGET_POSITION], 0.0  # no mode: hold the last target

@@ -57,31 +57,36 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
     axis = setup.build(cycle_s, plan.initial_counts)
     axis.restart()  # OPERATION ENABLED starts from the actual position, as the drive's
     drive_side = scene.cam_mode == "drive"
-    first, second = wire_set_points(plan, drive_side)
-    first = first.tolist()
+    targets, velocities = (a.tolist() for a in wire_set_points(plan, drive_side=False))
     recorder = Recorder(plan.cycles)
     recorder.series["statusword"][:] = _STATUSWORD_CSP
     following = recorder.series["following_error"]
     window = scene.drive.following_error_window
     monitored = window != FOLLOWING_ERROR_WINDOW_OFF
+    engage = plan.cycles  # the cycle the drive-side cam takes over (a cam-in's engagement)
     if drive_side:
+        masters = wire_set_points(plan, drive_side=True)[0].tolist()
         values = {CAM_STATUS: 0, CAM_MODE: 0}
         cam = CamSlot(values)
         cam.verify_download(run.cam.table.to_bytes())
         cam.write_command(CAM_COMMAND_ACTIVATE)
-        cam.write_mode(CAM_MODE_DRIVE_SIDE)
-    else:
-        second = second.tolist()
+        engage = plan.engaged_from or 0
     stopped = None
     emcy = []
     cycle = axis.cycle
     probe = recorder.probe
     for k in range(plan.cycles):
-        if drive_side:
-            values[MASTER_POSITION] = first[k]
-            cycle(*cam.target(cycle_s))
+        if drive_side:  # as the drive's CSP cycle: the RPDOs latched, then the cam or the set point
+            values[MASTER_POSITION] = masters[k]
+            if k == engage:
+                cam.write_mode(CAM_MODE_DRIVE_SIDE)
+            if k >= engage:
+                cycle(*cam.target(cycle_s))
+            else:
+                cam.observe(cycle_s)
+                cycle(targets[k], velocities[k])
         else:
-            cycle(first[k], second[k])
+            cycle(targets[k], velocities[k])
         error = axis.following_error_counts
         following[k] = wrap_int32(error)
         probe(k, axis)

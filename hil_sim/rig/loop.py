@@ -24,9 +24,11 @@ import can
 
 from hil_sim.bus import DELIVER, DROP, BusLoad, FaultInjector, arbitrate, frame_bits
 from hil_sim.drive import VirtualDrive, cia402
-from hil_sim.drive.objects import ERROR_CODE, STATUSWORD, TARGET_POSITION
+from hil_sim.drive.objects import (
+    CAM_MODE, ERROR_CODE, MASTER_POSITION, STATUSWORD, TARGET_POSITION, VELOCITY_OFFSET,
+)
 from hil_sim.rig.network import LockstepMaster, pdo_codec
-from hil_sim.rig.plan import Plan, wire_set_points
+from hil_sim.rig.plan import Plan, cam_modes, wire_set_points
 from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
 
 _SYNC_COB_ID = 0x80
@@ -81,17 +83,7 @@ class _Cycles:
         self.end_cycle = load.end_cycle
         self.budget_bits = load.budget_bits
         self.decide = injector.decide if injector else None
-        drive_side = scene.cam_mode == "drive"
-        rpdo = node.rpdo[3] if drive_side else node.rpdo[2]
-        codec, indexes = pdo_codec(rpdo)
-        first, second = wire_set_points(plan, drive_side)
-        if drive_side:
-            self.fields = (first,)
-        else:  # in the RPDO's mapping order
-            self.fields = tuple(first if i == TARGET_POSITION.index else second for i in indexes)
-        self.rpdo_cob_id = rpdo.cob_id
-        self.pack = codec.pack
-        self.rpdo_length = codec.size
+        self.streams = _set_point_streams(scene, plan, node)
         self.sync = can.Message(arbitration_id=_SYNC_COB_ID, data=b"", is_extended_id=False,
                                 check=False)
         self.sync_bits = frame_bits(0)
@@ -100,8 +92,8 @@ class _Cycles:
         self.decoders = self._tpdo_decoders(node)
         self.held_tx: dict[int, list] = {}  # cycle -> RPDOs that go out after its SYNC
         self.held_rx: dict[int, list] = {}  # cycle -> TPDOs that reach the controller in it
-        self.rpdo_fate = DELIVER  # of the next cycle's RPDO, decided in the cycle before
-        self.rpdo_late = False  # the next cycle's RPDO misses its SYNC (bus time)
+        self.rpdo_fate = DELIVER  # of the next cycle's RPDOs, decided in the cycle before
+        self.rpdo_late: set = set()  # COB-IDs of the next cycle's RPDOs that miss its SYNC
         self.carried_bits = 0  # bits of frames that go right after the next SYNC
         self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
 
@@ -126,12 +118,15 @@ class _Cycles:
         self.rpdo_fate = self._fate(0, "rpdo")
         for k in range(self.cycles):
             now = k * cycle_s
-            message = self._set_point(k, now)
-            if message is not None and not self.rpdo_late:
-                self.send(message)  # before the SYNC: latched by it
+            messages = self._set_points(k, now)
+            late = self.rpdo_late
+            for message in messages:
+                if message.arbitration_id not in late:
+                    self.send(message)  # before the SYNC: latched by it
             self._sync(k, now)
-            if message is not None and self.rpdo_late:
-                self.send(message)  # after the SYNC: latched by the next one
+            for message in messages:
+                if message.arbitration_id in late:
+                    self.send(message)  # after the SYNC: latched by the next one
             if self.held_tx:
                 for msg in self.held_tx.pop(k, ()):
                     self.send(msg)
@@ -151,18 +146,21 @@ class _Cycles:
         """DELIVER, DROP, or the cycles a frame of ``kind`` is held back (the injector's call)."""
         return self.decide(k, kind) if self.decide else DELIVER
 
-    def _set_point(self, k: int, now: float) -> can.Message | None:
-        """Cycle k's RPDO if it goes on the bus now (a delayed one is held, a lost one is gone)."""
+    def _set_points(self, k: int, now: float) -> list:
+        """Cycle k's RPDOs that go on the bus now (delayed ones are held, lost ones are gone)."""
         fate = self.rpdo_fate
-        msg = can.Message(arbitration_id=self.rpdo_cob_id,
-                          data=self.pack(*(int(values[k]) for values in self.fields)),
-                          is_extended_id=False, timestamp=now, check=False)
-        self.add_frame(self.rpdo_length)  # a lost frame took its bus time too
-        if fate == DELIVER:
-            return msg
-        if fate > 0:
-            self.held_tx.setdefault(k + fate, []).append(msg)
-        return None
+        out = []
+        for cob_id, pack, length, fields, until in self.streams:
+            if k >= until:
+                continue
+            msg = can.Message(arbitration_id=cob_id, data=pack(*(int(v[k]) for v in fields)),
+                              is_extended_id=False, timestamp=now, check=False)
+            self.add_frame(length)  # a lost frame took its bus time too
+            if fate == DELIVER:
+                out.append(msg)
+            elif fate > 0:
+                self.held_tx.setdefault(k + fate, []).append(msg)
+        return out
 
     def _sync(self, k: int, now: float) -> None:
         """The SYNC runs the drive one period; without it the drive still handles the RPDO and
@@ -203,20 +201,21 @@ class _Cycles:
             elif fate > 0:
                 self.held_rx.setdefault(k + fate, []).append(msg)
         frames = list(waiting)
-        self.rpdo_late = False
+        self.rpdo_late = set()
         if k + 1 < self.cycles:
             self.rpdo_fate = self._fate(k + 1, "rpdo")
             if self.rpdo_fate != DROP:
-                frames.append((self.rpdo_cob_id, self.rpdo_length, None))
+                frames += [(cob_id, length, None) for cob_id, _, length, _, until in self.streams
+                           if k + 1 < until]
         used = self.sync_bits + self.carried_bits
         on_time, late = arbitrate(frames, self.budget_bits, used)
         for _, _, msg in on_time:
             if msg is not None:
                 self._decode(k, msg)
         self.carried_bits = sum(frame_bits(length) for _, length, _ in late)
-        for _, _, msg in late:
+        for cob_id, _, msg in late:
             if msg is None:
-                self.rpdo_late = True
+                self.rpdo_late.add(cob_id)
                 self.deferred["late_set_points"] += 1
             else:
                 self.held_rx.setdefault(k + 1, []).append(msg)
@@ -232,3 +231,24 @@ class _Cycles:
         code = drive.values[ERROR_CODE]
         return (f"drive fault 0x{code:04X} at cycle {k} (t {now + self.cycle_s:.6g} s), "
                 f"statusword 0x{drive.values[STATUSWORD]:04X}")
+
+
+def _set_point_streams(scene, plan: Plan, node) -> list:
+    """What the controller sends each cycle, as (COB-ID, pack, length, fields per cycle in the
+    RPDO's mapping order, the cycle it stops before): controller-side the target and the velocity
+    offset (RPDO2); drive-side the master position (RPDO3), with the cam mode for a cam-in, whose
+    approach goes as CSP set points in RPDO2 until the engagement."""
+    def stream(rpdo, arrays: dict, until: int):
+        codec, indexes = pdo_codec(rpdo)
+        return (rpdo.cob_id, codec.pack, codec.size, tuple(arrays[i] for i in indexes), until)
+
+    targets, velocities = wire_set_points(plan, drive_side=False)
+    controller = {TARGET_POSITION.index: targets, VELOCITY_OFFSET.index: velocities}
+    if scene.cam_mode != "drive":
+        return [stream(node.rpdo[2], controller, plan.cycles)]
+    master, _ = wire_set_points(plan, drive_side=True)
+    drive = {MASTER_POSITION.index: master, CAM_MODE.index: cam_modes(plan)}
+    streams = [stream(node.rpdo[3], drive, plan.cycles)]
+    if plan.engaged_from is not None:
+        streams.insert(0, stream(node.rpdo[2], controller, plan.engaged_from))
+    return streams

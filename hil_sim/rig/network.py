@@ -15,7 +15,7 @@ from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE
 from hil_sim.drive.objects import (
     ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_MODE, CAM_TABLE_DOWNLOAD, CONTROLWORD,
     FOLLOWING_ERROR_WINDOW, INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD_VALUE,
-    MODES_OF_OPERATION, PENDING_CAM_TABLE_CRC32, STATUSWORD, STRUCT_CODES, ObjectKey,
+    MASTER_POSITION, MODES_OF_OPERATION, PENDING_CAM_TABLE_CRC32, STATUSWORD, STRUCT_CODES, ObjectKey,
     interpolation_period,
 )
 from hil_sim.rig.cam import CompiledCam
@@ -110,12 +110,17 @@ def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualD
     step = "configuration (0x60C2, 0x6065, 0x6060)"
     try:
         _configure(scene, node)
+        cam_in = scene.master.profile == "cam_in"
         if scene.cam_mode == "drive":
             step = "table download (0x2000..0x2004)"
-            facts["download"] = _download_table(scene, controller, node, cam.table)
+            facts["download"] = _download_table(scene, controller, node, cam.table,
+                                                select=not cam_in)
         step = "PDO set-up"
         node.tpdo.read()
         node.rpdo.read()
+        if scene.cam_mode == "drive" and cam_in:
+            step = "RPDO3 mapping (0x1602: 0x2003, 0x2004)"
+            _map_cam_mode(node)
     except (SdoAbortedError, SdoCommunicationError) as exc:
         raise SimulationError(f"drive set-up failed at the {step}: {exc}") from None
     node.nmt.state = "OPERATIONAL"
@@ -135,8 +140,23 @@ def _configure(scene: Scene, node) -> None:
     sdo_entry(sdo, MODES_OF_OPERATION).raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
 
 
-def _download_table(scene: Scene, controller: LockstepMaster, node, table) -> dict:
-    """Download the table, activate it and select it; return what the download cost."""
+def _map_cam_mode(node) -> None:
+    """A drive-side cam-in: the cam mode (0x2004) rides in RPDO3 with the master position, so
+    the drive switches to its cam in the cycle the controller's approach ends (mapped by SDO in
+    PRE-OPERATIONAL in the order CiA 301 gives for the RPDO mapping parameter 0x1600..0x17FF:
+    disable the PDO, zero entries, map, set the count, enable)."""
+    rpdo = node.rpdo[3]
+    rpdo.clear()
+    rpdo.add_variable(MASTER_POSITION.index, MASTER_POSITION.subindex)
+    rpdo.add_variable(CAM_MODE.index, CAM_MODE.subindex)
+    rpdo.enabled = True
+    rpdo.save()
+
+
+def _download_table(scene: Scene, controller: LockstepMaster, node, table,
+                    select: bool = True) -> dict:
+    """Download the table, activate it and (``select``) select it; return what the download
+    cost."""
     sdo = node.sdo
     blob = table.to_bytes()
     before = controller.frames
@@ -149,7 +169,8 @@ def _download_table(scene: Scene, controller: LockstepMaster, node, table) -> di
     active = sdo_entry(sdo, ACTIVE_CAM_TABLE_CRC32).raw
     if active != table.crc32:
         raise SimulationError(f"drive active table CRC 0x{active:08x}, expected 0x{table.crc32:08x}")
-    sdo_entry(sdo, CAM_MODE).raw = CAM_MODE_DRIVE_SIDE
+    if select:
+        sdo_entry(sdo, CAM_MODE).raw = CAM_MODE_DRIVE_SIDE
     return {"bytes": len(blob), "frames": frames,
             "seconds_at_bitrate": frames * frame_bits(8) / scene.bus.bitrate}
 

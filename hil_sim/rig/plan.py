@@ -8,7 +8,9 @@ position of now (``lead_cycles = 0``) makes the drive lag one cycle behind it.
 
 Controller-side, the set points are looked up in the table for all cycles at once
 (``table.lookup`` for the target, ``table.slope`` times the master speed at the target's time for
-the velocity offset). Drive-side, the master position is what goes on the bus.
+the velocity offset). Drive-side, the master position is what goes on the bus; a drive-side cam-in
+sends the controller's approach as CSP set points too, with cam mode 0, and switches the drive to
+its cam (cam mode 1, in the same RPDO as the master position) at the engagement.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ class Plan:
     speed_units: float           # cruise master speed [master units/s]
     start_units: float           # true master position at t = 0 [master units]
     sync_offsets: np.ndarray     # SYNC jitter of cycle k [s]
+    engaged_from: int | None = None  # a cam-in: the first cycle whose set point is the cam's
 
 
 @dataclass(frozen=True)
@@ -138,6 +141,7 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
     velocities = table.slope(master_end) / 65536.0 * master.velocity(t_set)
     master_true = master.position(t_end)
     reference = profile(master_true / per_unit)
+    engaged_from = None
     if slave_plan is None:
         initial = int(table.lookup(int(round(float(master.position(0.0))))))
     else:
@@ -145,6 +149,7 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
         # (evaluated only there: the plan is a Python call per sample), after it the cam.
         engage_s = slave_plan.engage_s
         approach = t_set < engage_s
+        engaged_from = int(np.count_nonzero(approach))  # t_set rises: the approach comes first
         targets = targets.copy()
         velocities = velocities.copy()
         targets[approach] = np.rint(slave_plan.position(t_set[approach])).astype(np.int64)
@@ -157,7 +162,8 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
                 reference_units=np.asarray(reference, dtype=float),
                 master_units=np.asarray(master_true, dtype=float) / per_unit,
                 initial_counts=initial, speed_units=speed_units,
-                start_units=float(master.position(0.0)) / per_unit, sync_offsets=jitter)
+                start_units=float(master.position(0.0)) / per_unit, sync_offsets=jitter,
+                engaged_from=engaged_from)
 
 
 def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float):
@@ -224,6 +230,15 @@ def cruise_s(scene: Scene, cam: CompiledCam) -> float:
     if slave_plan is not None:
         return float(slave_plan.engage_s)
     return float(getattr(master, "at_speed_s", 0.0))
+
+
+def cam_modes(plan: Plan) -> np.ndarray:
+    """Drive-side, the cam mode (0x2004) each cycle's RPDO carries for a cam-in: 0 (the target
+    from the controller, CSP) while the controller plans the approach, 1 (the drive's cam) from
+    the engagement on."""
+    modes = np.ones(plan.cycles, dtype=np.int64)
+    modes[:plan.engaged_from or 0] = 0
+    return modes
 
 
 def wire_set_points(plan: Plan, drive_side: bool) -> tuple[np.ndarray, np.ndarray | None]:

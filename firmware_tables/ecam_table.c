@@ -40,6 +40,16 @@
 #define ECAM_COLD
 #endif
 
+/* GCC only: no instruction scheduling before register allocation in the functions marked, which
+ * on the Cortex-M4 at -O2 stretches the live ranges of the quintic's 64-bit values into spills
+ * (gcc 12: ecam_lookup_at_quintic's frame 72 B with it, 56 B without; the budget is 64 B per
+ * call, FORMAT.md). A hint only: the code is the same C99 without it. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define ECAM_LEAN __attribute__((optimize("no-schedule-insns")))
+#else
+#define ECAM_LEAN
+#endif
+
 /* Byte offsets of the header fields, from the table in FORMAT.md. */
 #define ECAM_OFF_VERSION 4u
 #define ECAM_OFF_HEADER_BYTES 6u
@@ -79,6 +89,7 @@
 #define ECAM_SIGN_BIT64 (UINT64_C(1) << 63)
 #define ECAM_SIGN_BIT32 ((uint32_t)0x80000000u)
 #define ECAM_INT32_LIMIT ((uint32_t)0x7FFFFFFFu)
+#define ECAM_NET_SMALL_DEN 65536u /* D up to 2^16: step 7's last quotient fits 32 bits */
 
 /* ------------------------------------------------------------------------------------------ */
 /* Byte access and integer helpers                                                            */
@@ -141,7 +152,7 @@ static ECAM_INLINE uint64_t ecam_asr(uint64_t x, unsigned s)
 }
 
 /* asr(x, s) for any s: counts past 63 give the exact floor, 0 or -1 (a C shift would be UB). */
-static uint64_t ecam_asr_any(uint64_t x, unsigned s)
+static ECAM_INLINE uint64_t ecam_asr_any(uint64_t x, unsigned s)
 {
     if (s > ECAM_MAX_SHIFT) {
         return (x & ECAM_SIGN_BIT64) != 0u ? UINT64_MAX : 0u;
@@ -330,7 +341,7 @@ static ECAM_INLINE int32_t ecam_out(const ecam_table *t, uint64_t z)
 
 /* Step 6: slope = asr(asr(q, P) * R, 16 + F + W - P), the Q16 slope per master count.
  * P may reach 86; ecam_asr_any gives the exact floor for counts past 63. */
-static int32_t ecam_slope_out(const ecam_table *t, uint64_t q)
+static ECAM_INLINE int32_t ecam_slope_out(const ecam_table *t, uint64_t q)
 {
     return ecam_i32(
         (uint32_t)ecam_asr(ecam_asr_any(q, t->slope_preshift) * t->tau_recip, t->slope_out_shift));
@@ -442,7 +453,8 @@ static ECAM_INLINE uint64_t ecam_mac(uint64_t acc, int32_t word, int32_t multipl
  * c3 = a0 + a1 - 2D, c2 = 3D - 2a0 - a1, c1 = a0 (FORMAT.md step 4), then Horner with flooring
  * inner shifts; the slope's Horner is the derivative's: q = 3 c3, 2 c2 + .., c1 + ... */
 #if ECAM_WORD_BITS == 64
-static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32_t tau_in, bool slope)
+static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32_t tau_in, bool slope,
+                                         bool lean)
 {
     const size_t at = (size_t)i * 4u;
     const ecam_horner_fraction tau = ecam_horner_tau(t, tau_in);
@@ -451,6 +463,8 @@ static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32
     const uint64_t a0 = ecam_scaled(&t->slope[at], t->slope_scale);
     const uint64_t a1 = ecam_scaled(&t->slope[at + 4u], t->slope_scale);
     uint64_t r;
+
+    (void)lean; /* 64-bit cores have one position path */
 
     if (slope) {
         r = 6u * d - 4u * a0 - 2u * a1 + ecam_mulshift(t, 3u * (a0 + a1 - 2u * d), tau);
@@ -465,14 +479,15 @@ static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32
 /* On 32-bit cores the stored position Y0 stays a 32-bit word until the last step and
  * D = (Y1 - Y0) * 2^(W - Qy) is formed from the 64-bit difference: a 32x32 multiply, or a
  * 64-bit one for a scale past 2^30 (fine tables). */
-static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32_t tau_in, bool slope)
+static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32_t tau_in, bool slope,
+                                         bool lean)
 {
     const size_t at = (size_t)i * 4u;
     const ecam_horner_fraction tau = ecam_horner_tau(t, tau_in);
     const int32_t y0 = ecam_i32(ecam_get_u32(&t->position[at]));
     const uint64_t dy = (uint64_t)(int64_t)ecam_i32(ecam_get_u32(&t->position[at + 4u])) -
                         (uint64_t)(int64_t)y0;
-    const uint64_t d = (t->position_wide != 0u) ? (dy * t->position_scale)
+    const uint64_t d = (lean || (t->position_wide != 0u)) ? (dy * t->position_scale)
                                                  : (dy * (uint32_t)t->position_scale);
     const uint64_t a0 = ecam_scaled(&t->slope[at], t->slope_scale);
     const uint64_t a1 = ecam_scaled(&t->slope[at + 4u], t->slope_scale);
@@ -486,7 +501,7 @@ static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32
     r = 3u * d - 2u * a0 - a1 + ecam_mulshift(t, r, tau);
     r = a0 + ecam_mulshift(t, r, tau);
     r = ecam_mulshift(t, r, tau) + t->round;
-    if (t->position_wide != 0u) {
+    if (lean || (t->position_wide != 0u)) {
         return ecam_out(t, r + ((uint64_t)(int64_t)y0 * t->position_scale));
     }
     return ecam_out(t, ecam_mac(r, y0, (int32_t)(uint32_t)t->position_scale));
@@ -499,7 +514,7 @@ static ECAM_INLINE int32_t ecam_cubic_at(const ecam_table *t, uint32_t i, uint32
  * step 4 with s = a0 + a1 and u = b1 - b0: c5 = 6d - 3s + u, c4 = 7s - 15d - 2u + a0 + b0,
  * c3 = 10d - 4s + u - 2a0 - 2b0, c2 = b0, c1 = a0. */
 static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint32_t tau_in,
-                                           bool slope)
+                                           bool slope, bool lean)
 {
     const size_t at = (size_t)i * 4u;
     const ecam_horner_fraction tau = ecam_horner_tau(t, tau_in);
@@ -510,6 +525,8 @@ static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint
     const uint64_t b0 = ecam_scaled(&t->curvature[at], t->curvature_scale);
     const uint64_t u = ecam_scaled(&t->curvature[at + 4u], t->curvature_scale) - b0;
     const uint64_t k = slope ? UINT64_C(1) : UINT64_C(0);
+
+    (void)lean; /* 64-bit cores have one position path */
     uint64_t r = (1u + 4u * k) * (6u * d - 3u * s + u);
 
     r = (1u + 3u * k) * (7u * s - 15u * d - 2u * u + a0 + b0) + ecam_mulshift(t, r, tau);
@@ -530,7 +547,7 @@ static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint
  * 32-bit and each bracket is a chain of four multiply-accumulates onto the previous Horner
  * product (multipliers from init), so few 64-bit values are live and the frame stays small. */
 static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint32_t tau_in,
-                                           bool slope)
+                                           bool slope, bool lean)
 {
     const size_t at = (size_t)i * 4u;
     const ecam_horner_fraction tau = ecam_horner_tau(t, tau_in);
@@ -538,7 +555,7 @@ static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint
     /* D = (Y1 - Y0) * 2^(W - Qy) with Y1 - Y0 as a 64-bit value: no 64-bit Y0 stays live. */
     const uint64_t dy = (uint64_t)(int64_t)ecam_i32(ecam_get_u32(&t->position[at + 4u])) -
                         (uint64_t)(int64_t)y0;
-    const uint64_t d = (t->position_wide != 0u) ? (dy * t->position_scale)
+    const uint64_t d = (lean || (t->position_wide != 0u)) ? (dy * t->position_scale)
                                                  : (dy * (uint32_t)t->position_scale);
     const int32_t a0 = ecam_i32(ecam_get_u32(&t->slope[at]));
     const int32_t a1 = ecam_i32(ecam_get_u32(&t->slope[at + 4u]));
@@ -566,7 +583,7 @@ static ECAM_INLINE int32_t ecam_quintic_at(const ecam_table *t, uint32_t i, uint
     r = ecam_mac(ecam_mulshift(t, r, tau), b0, m[12]);
     r = ecam_mac(ecam_mulshift(t, r, tau), a0, m[13]);
     r = ecam_mulshift(t, r, tau) + t->round;
-    if (t->position_wide != 0u) {
+    if (lean || (t->position_wide != 0u)) {
         return ecam_out(t, r + ((uint64_t)(int64_t)y0 * t->position_scale));
     }
     return ecam_out(t, ecam_mac(r, y0, (int32_t)(uint32_t)t->position_scale));
@@ -614,9 +631,9 @@ static ECAM_INLINE int32_t ecam_kernel(const ecam_table *t, int64_t master, unsi
         return slope ? ecam_linear_slope_at(t, i) : ecam_linear_at(t, i, tau);
     }
     if (degree == 3u) {
-        return ecam_cubic_at(t, i, tau, slope);
+        return ecam_cubic_at(t, i, tau, slope, false);
     }
-    return ecam_quintic_at(t, i, tau, slope);
+    return ecam_quintic_at(t, i, tau, slope, false);
 }
 
 /* The position kernels (degree x step kind) and the slope kernels (degree); init picks one of
@@ -712,9 +729,9 @@ static ECAM_COLD uint64_t ecam_coefficient(const ecam_table *t, size_t at, unsig
     return 6u * d - 3u * a0 - 3u * a1 - b0 + b1;
 }
 
-/* Steps 2..6 with any scale: the kernels of a table whose scales are too wide for the 32-bit
- * cores' fast kernels, or whose final position shift is 0. */
-static int32_t ecam_general(const ecam_table *t, int64_t m, bool slope)
+/* Steps 2..6 with any scale, for a master inside [0, M): the kernels of a table whose scales are
+ * too wide for the 32-bit cores' fast kernels, or whose final position shift is 0. */
+static ECAM_COLD int32_t ecam_general_local(const ecam_table *t, uint32_t local, bool slope)
 {
     const unsigned n = t->degree;
     uint32_t tau32 = 0u;
@@ -724,10 +741,7 @@ static int32_t ecam_general(const ecam_table *t, int64_t m, bool slope)
     uint64_t r;
     unsigned k;
 
-    if ((uint64_t)m >= t->master_limit) {
-        return slope ? ecam_slope_outside(t, m) : t->position_outside(t, m);
-    }
-    i = ecam_locate(t, (uint32_t)m, ecam_pow2(t), &tau32);
+    i = ecam_locate(t, local, ecam_pow2(t), &tau32);
     at = (size_t)i * 4u;
     tau = tau32;
     r = (slope ? n : 1u) * ecam_coefficient(t, at, n);
@@ -741,6 +755,15 @@ static int32_t ecam_general(const ecam_table *t, int64_t m, bool slope)
     r = ecam_scaled_any(&t->position[at], t->position_scale) + ecam_asr(r * tau, t->tau_bits) +
         t->half;
     return ecam_i32((uint32_t)ecam_asr(r, t->work_bits));
+}
+
+/* Step 1 (a master inside [0, M) goes on by a tail call), then ecam_general_local. */
+static int32_t ecam_general(const ecam_table *t, int64_t m, bool slope)
+{
+    if ((uint64_t)m >= t->master_limit) {
+        return slope ? ecam_slope_outside(t, m) : t->position_outside(t, m);
+    }
+    return ecam_general_local(t, (uint32_t)m, slope);
 }
 
 static int32_t ecam_position_general(const ecam_table *t, int64_t m)
@@ -839,8 +862,8 @@ static ECAM_INLINE uint32_t ecam_wrap_turns(const ecam_table *t, int64_t m, uint
  * with N = A D + B (0 < B < D) and k = kh D + kl (0 <= kl < D), floor((k B + floor(D/2)) / D) =
  * kh B + floor((kl B + floor(D/2)) / D), whose numerator is below D^2 < 2^64: no product leaves
  * 64 bits, no divide. kh and kl by the biased floor division of the wrap: k + 2^63 = q D + r and
- * 2^63 = net_bias D + net_bias_rest. Its own function: the common D = 1 keeps a small frame. */
-static ECAM_COLD uint32_t ecam_net_fraction(const ecam_table *t, uint64_t turns)
+ * 2^63 = net_bias D + net_bias_rest. Inline: the kernel runs after this frame is gone. */
+static ECAM_INLINE uint32_t ecam_net_fraction(const ecam_table *t, uint64_t turns)
 {
     uint64_t rest = 0u;
     uint64_t kh = ecam_divmod(turns ^ ECAM_SIGN_BIT64, t->net_den, t->net_recip, &rest) - t->net_bias;
@@ -853,6 +876,21 @@ static ECAM_COLD uint32_t ecam_net_fraction(const ecam_table *t, uint64_t turns)
         kl = (rest + t->net_den) - t->net_bias_rest;
         kh--;
     }
+#if ECAM_WORD_BITS != 64 /* (64-bit cores: the 64-bit quotient is one multiply already) */
+    if (t->net_den <= ECAM_NET_SMALL_DEN) {
+        /* x = kl B + floor(D/2) < 2^32 (kl, B < D <= 2^16): a 32-bit Barrett quotient with
+         * mu = floor((2^32 - 1) / D), which is the high word of net_recip: floor((2^64 - 1) /
+         * (D 2^32)) has no integer above floor((2^32 - 1) / D), as no multiple of D lies in
+         * (2^32 - 1, 2^32). Then x / D - 2 < q <= x / D: one correction. */
+        const uint32_t x = ((uint32_t)kl * t->net_rest) + t->net_half;
+        uint32_t q = (uint32_t)(((uint64_t)x * (uint32_t)(t->net_recip >> 32)) >> 32);
+
+        if ((x - (q * t->net_den)) >= t->net_den) {
+            q++;
+        }
+        return ((uint32_t)kh * t->net_rest) + q;
+    }
+#endif
     last = ecam_divmod((kl * t->net_rest) + t->net_half, t->net_den, t->net_recip, &rest);
     return ((uint32_t)kh * t->net_rest) + (uint32_t)last;
 }
@@ -861,16 +899,24 @@ static ECAM_COLD uint32_t ecam_net_fraction(const ecam_table *t, uint64_t turns)
  * k = floor(m / M) whole periods add floor((k N + floor(D/2)) / D) = k A + floor((k B +
  * floor(D/2)) / D), taken modulo 2^32 (the int32 wrap); for D = 1 (B = 0) one multiply. The
  * kernel then runs with the master inside the period. */
-static ECAM_COLD int32_t ecam_position_net_outside(const ecam_table *t, int64_t m)
+static ECAM_INLINE uint32_t ecam_net_term(const ecam_table *t, uint64_t turns)
 {
-    uint64_t turns = 0u;
-    const uint32_t local = ecam_wrap_turns(t, m, &turns);
     uint32_t term = (uint32_t)turns * t->net_whole;
 
     if (t->net_rest != 0u) {
         term += ecam_net_fraction(t, turns);
     }
-    return ecam_i32((uint32_t)t->position_kernel(t, (int64_t)local) + term);
+    return term;
+}
+
+/* The kernel continues with the term passed in (a tail call: this frame is gone before the
+ * kernel's is made, so a net stroke adds nothing to the stack per call). */
+static ECAM_COLD int32_t ecam_position_net_outside(const ecam_table *t, int64_t m)
+{
+    uint64_t turns = 0u;
+    const uint32_t local = ecam_wrap_turns(t, m, &turns);
+
+    return t->position_at(t, local, ecam_net_term(t, turns));
 }
 
 /* The same for a linear table with a whole net stroke (D = 1), with steps 2..5 inline: its kernel
@@ -896,6 +942,158 @@ static ECAM_COLD int32_t ecam_linear_whole(const ecam_table *t, int64_t m)
     return ecam_linear_whole_at(t, m, false);
 }
 
+/* Steps 2..6 of one degree for a master inside [0, M): the position (with the net term of step 7
+ * added modulo 2^32) or the slope. */
+static ECAM_INLINE int32_t ecam_value_at(const ecam_table *t, uint32_t i, uint32_t tau, unsigned degree,
+                                         bool slope)
+{
+    if (degree == 1u) {
+        return slope ? ecam_linear_slope_at(t, i) : ecam_linear_at(t, i, tau);
+    }
+    if (degree == 3u) {
+        return ecam_cubic_at(t, i, tau, slope, true);
+    }
+    return ecam_quintic_at(t, i, tau, slope, true);
+}
+
+/* The position of a master inside [0, M) plus a term (the continuation of a net stroke's wrap). */
+static ECAM_INLINE int32_t ecam_position_term_at(const ecam_table *t, uint32_t local, uint32_t term,
+                                                 unsigned degree, bool pow2)
+{
+    uint32_t tau = 0u;
+    const uint32_t i = ecam_locate(t, local, pow2, &tau);
+
+    return ecam_i32((uint32_t)ecam_value_at(t, i, tau, degree, false) + term);
+}
+
+/* Both outputs of a master inside [0, M) in one pass (one interval search; the position plus a
+ * term): the whole of ecam_table_lookup, reached by a tail call, so one frame per call. */
+static ECAM_INLINE void ecam_lookup_term_at(const ecam_table *t, int32_t *position, uint32_t local,
+                                            uint32_t term, int32_t *slope, unsigned degree, bool pow2)
+{
+    uint32_t tau = 0u;
+    uint32_t i;
+
+    if (position != NULL) {
+        *position = ecam_position_term_at(t, local, term, degree, pow2);
+    }
+    if (slope != NULL) {
+        /* the interval again (a few instructions): only the master stays live across the
+         * position, which keeps the quintic's frame at 64 B */
+        i = ecam_locate(t, local, pow2, &tau);
+        *slope = ecam_value_at(t, i, tau, degree, true);
+    }
+}
+
+/* One of each per degree and step kind; init picks them with the kernels. */
+static ECAM_LEAN int32_t ecam_position_at_linear_pow2(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 1u, true);
+}
+
+static ECAM_LEAN int32_t ecam_position_at_linear(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 1u, false);
+}
+
+static ECAM_LEAN int32_t ecam_position_at_cubic_pow2(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 3u, true);
+}
+
+static ECAM_LEAN int32_t ecam_position_at_cubic(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 3u, false);
+}
+
+static ECAM_LEAN int32_t ecam_position_at_quintic_pow2(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 5u, true);
+}
+
+static ECAM_LEAN int32_t ecam_position_at_quintic(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_position_term_at(t, local, term, 5u, false);
+}
+
+static int32_t ecam_position_at_general(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return ecam_i32((uint32_t)ecam_general_local(t, local, false) + term);
+}
+
+static ECAM_LEAN void ecam_lookup_at_linear_pow2(const ecam_table *t, int32_t *position, uint32_t local,
+                                  uint32_t term, int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 1u, true);
+}
+
+static ECAM_LEAN void ecam_lookup_at_linear(const ecam_table *t, int32_t *position, uint32_t local, uint32_t term,
+                                  int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 1u, false);
+}
+
+static ECAM_LEAN void ecam_lookup_at_cubic_pow2(const ecam_table *t, int32_t *position, uint32_t local,
+                                  uint32_t term, int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 3u, true);
+}
+
+static ECAM_LEAN void ecam_lookup_at_cubic(const ecam_table *t, int32_t *position, uint32_t local, uint32_t term,
+                                  int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 3u, false);
+}
+
+static ECAM_LEAN void ecam_lookup_at_quintic_pow2(const ecam_table *t, int32_t *position, uint32_t local,
+                                  uint32_t term, int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 5u, true);
+}
+
+static ECAM_LEAN void ecam_lookup_at_quintic(const ecam_table *t, int32_t *position, uint32_t local, uint32_t term,
+                                  int32_t *slope)
+{
+    ecam_lookup_term_at(t, position, local, term, slope, 5u, false);
+}
+
+static void ecam_lookup_at_general(const ecam_table *t, int32_t *position, uint32_t local, uint32_t term,
+                                   int32_t *slope)
+{
+    if (position != NULL) {
+        *position = ecam_i32((uint32_t)ecam_general_local(t, local, false) + term);
+    }
+    if (slope != NULL) {
+        *slope = ecam_general_local(t, local, true);
+    }
+}
+
+/* ecam_table_lookup past [0, M): the clamp, or the wrap (and a net stroke's term), then both
+ * outputs by a tail call. */
+static ECAM_COLD void ecam_lookup_outside(const ecam_table *t, int32_t *position, int64_t m, int32_t *slope)
+{
+    uint64_t turns = 0u;
+    uint32_t local;
+    uint32_t term = 0u;
+
+    if (t->periodic == ECAM_CLAMP) {
+        if (position != NULL) {
+            *position = m < 0 ? t->end_position[0] : t->end_position[1];
+        }
+        if (slope != NULL) {
+            *slope = 0;
+        }
+        return;
+    }
+    if (t->periodic == ECAM_WRAP_NET) {
+        local = ecam_wrap_turns(t, m, &turns);
+        term = ecam_net_term(t, turns);
+    } else {
+        local = ecam_wrap(t, m);
+    }
+    t->lookup_at(t, position, local, term, slope);
+}
+
 /* The hot path: one indirect jump to the kernel chosen at init. */
 int32_t ecam_table_position(const ecam_table *t, int64_t master_counts)
 {
@@ -905,18 +1103,25 @@ int32_t ecam_table_position(const ecam_table *t, int64_t master_counts)
     return t->position_kernel(t, master_counts);
 }
 
-/* Both outputs of one master position (each output has its kernel; the wrap is cheap). */
+/* Both outputs of one master position in one pass: one call of the degree's lookup_at (a tail
+ * call, so the stack per call is that function's frame alone). */
 void ecam_table_lookup(const ecam_table *t, int64_t master_counts, int32_t *position,
                        int32_t *slope)
 {
-    const int ready = ecam_table_ready(t);
-
-    if (position != NULL) {
-        *position = ready != 0 ? t->position_kernel(t, master_counts) : ECAM_INVALID;
+    if (ecam_table_ready(t) == 0) {
+        if (position != NULL) {
+            *position = ECAM_INVALID;
+        }
+        if (slope != NULL) {
+            *slope = ECAM_INVALID;
+        }
+        return;
     }
-    if (slope != NULL) {
-        *slope = ready != 0 ? t->slope_kernel(t, master_counts) : ECAM_INVALID;
+    if ((uint64_t)master_counts >= t->master_limit) { /* also every negative master */
+        ecam_lookup_outside(t, position, master_counts, slope);
+        return;
     }
+    t->lookup_at(t, position, (uint32_t)master_counts, 0u, slope);
 }
 
 /* The velocity feed-forward ratio alone: one indirect jump to the slope kernel. */
@@ -1574,6 +1779,27 @@ static ecam_slope_kernel ecam_pick_slope_kernel(const ecam_header *h)
     return h->degree == 3u ? ecam_slope_cubic : ecam_slope_quintic;
 }
 
+/* The continuations of one degree past the wrap and of ecam_table_lookup (the general ones
+ * where the fast kernels' scales do not fit). */
+static void ecam_pick_at(const ecam_header *h, ecam_table *t)
+{
+    const bool pow2 = h->step_shift >= 0;
+
+    if (ecam_pick_kernel(h, true) == ecam_position_general) {
+        t->position_at = ecam_position_at_general;
+        t->lookup_at = ecam_lookup_at_general;
+    } else if (h->degree == 1u) {
+        t->position_at = pow2 ? ecam_position_at_linear_pow2 : ecam_position_at_linear;
+        t->lookup_at = pow2 ? ecam_lookup_at_linear_pow2 : ecam_lookup_at_linear;
+    } else if (h->degree == 3u) {
+        t->position_at = pow2 ? ecam_position_at_cubic_pow2 : ecam_position_at_cubic;
+        t->lookup_at = pow2 ? ecam_lookup_at_cubic_pow2 : ecam_lookup_at_cubic;
+    } else {
+        t->position_at = pow2 ? ecam_position_at_quintic_pow2 : ecam_position_at_quintic;
+        t->lookup_at = pow2 ? ecam_lookup_at_quintic_pow2 : ecam_lookup_at_quintic;
+    }
+}
+
 /* The net stroke N/D per period (version 2): A = floor(N / D), B = N mod D and the reciprocals
  * of step 7, and the position_outside that applies them. */
 static void ecam_set_net_stroke(const ecam_header *h, ecam_table *t)
@@ -1654,6 +1880,7 @@ static void ecam_prepare(const uint8_t *blob, const ecam_header *h, ecam_table *
     t->position_kernel = ecam_pick_kernel(h, pow2);
     t->slope_kernel = ecam_pick_slope_kernel(h);
     t->position_outside = ecam_position_outside;
+    ecam_pick_at(h, t);
     ecam_set_net_stroke(h, t);
 }
 
@@ -1732,6 +1959,8 @@ static void ecam_pair_write(volatile ecam_table *dst, const ecam_table *src)
     dst->position_kernel = src->position_kernel;
     dst->slope_kernel = src->slope_kernel;
     dst->position_outside = src->position_outside;
+    dst->position_at = src->position_at;
+    dst->lookup_at = src->lookup_at;
     dst->position = src->position;
     dst->slope = src->slope;
     dst->curvature = src->curvature;

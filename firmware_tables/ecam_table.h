@@ -98,6 +98,12 @@ typedef struct ecam_table ecam_table;
 /* The kernels of one degree and step kind, chosen by ecam_table_init (any master). */
 typedef int32_t (*ecam_position_kernel)(const ecam_table *table, int64_t master_counts);
 typedef int32_t (*ecam_slope_kernel)(const ecam_table *table, int64_t master_counts);
+/* The continuations of one degree for a master already inside [0, M) (a net stroke's wrap and
+ * ecam_table_lookup reach them by a tail call, so their frames never stack on another): the
+ * position plus a term modulo 2^32, and both outputs in one pass. */
+typedef int32_t (*ecam_position_at_kernel)(const ecam_table *table, uint32_t local, uint32_t term);
+typedef void (*ecam_lookup_at_kernel)(const ecam_table *table, int32_t *position, uint32_t local,
+                                      uint32_t term, int32_t *slope);
 
 /*
  * A validated view of one blob, with its format precomputed. Treat the members as private: they
@@ -108,6 +114,8 @@ struct ecam_table {
     ecam_position_kernel position_kernel; /* NULL unless ready */
     ecam_slope_kernel slope_kernel;       /* NULL unless ready */
     ecam_position_kernel position_outside; /* the position kernels' path past [0, M) */
+    ecam_position_at_kernel position_at;  /* the position inside [0, M) plus a net term */
+    ecam_lookup_at_kernel lookup_at;      /* both outputs inside [0, M), plus a net term */
     const uint8_t *position;              /* payload array 1 (little-endian int32, Q(Qy)) */
     const uint8_t *slope;                 /* payload array 2, NULL for degree 1 */
     const uint8_t *curvature;             /* payload array 3, NULL unless degree 5 */

@@ -32,9 +32,10 @@ GOLDEN = sorted(p for p in (FIRMWARE / "vectors").glob("*.csv") if p.with_suffix
 RANDOM_QUERIES = 3000
 # (master_counts, intervals): power-of-two and other steps, a single-count step, the largest periods
 GEOMETRIES = [(2**20, 64), (360_000, 60), (2, 2), (3, 1), (2**31, 2), (2_147_483_646, 42), (3 * 2**29, 2)]
-STACK_LIMIT = {"position": 64, "slope": 64, "lookup": 96}  # bytes per call on Cortex-M4 (FORMAT.md)
-# A net stroke adds step 7's frame around the kernel past the period (FORMAT.md, "Runtime").
-NET_STACK_LIMIT = {"position": 96, "slope": 64, "lookup": 128}
+# Bytes per call on Cortex-M4 (issue 11, FORMAT.md), every API call, with or without a net stroke:
+# the wrap, step 7 and ecam_table_lookup reach the kernel by a tail call, so frames never stack
+# (before: lookup 84 / 96 B at -Os / -O2, a net stroke's position 84 / 80 B and lookup 108 / 112 B).
+STACK_LIMIT = {"position": 64, "slope": 64, "lookup": 64}
 
 
 def require(name: str) -> cross.Target:
@@ -187,6 +188,43 @@ def test_instruction_budget_x86_64(tmp_path, capsys):
                           f"x86-64 {BUDGET_TABLES[k]}")
 
 
+# A net stroke with D > 1 (N/D = 1080001/3 written into the rotary_knife tables) costs step 7's
+# divisions by D on every master outside the period. Cubic and quintic stay inside the issue's 3x;
+# a linear table cannot (its minimal lookup is 19 / 29 instructions, the divisions alone cost
+# more), the exception FORMAT.md names. Limits held near what the runtime achieves (gcc 12: x86-64
+# 5.05x / 2.80x / 2.03x, Cortex-M4 4.76x / 2.80x / 2.12x; before: x86-64 5.38x / 2.91x / 2.07x,
+# Cortex-M4 5.63x / 3.08x / 2.34x).
+FRACTION_WIDE_LIMIT = {"x86-64": {"linear": 5.2, "cubic": 2.9, "quintic": 2.1},
+                       "cortex-m4": {"linear": 5.0, "cubic": 3.0, "quintic": 2.25}}  # fmt: skip
+
+
+@pytest.mark.parametrize("where", ["x86-64", "cortex-m4"])
+def test_instruction_budget_fractional_net_stroke(tmp_path, capsys, where):
+    import struct
+
+    why = instructions.host_note() if where == "x86-64" else instructions.m4_note()
+    if why:
+        pytest.skip(why)
+    with capsys.disabled():
+        print()
+        for kind, limit in FRACTION_WIDE_LIMIT[where].items():
+            blob = (FIRMWARE / "vectors" / f"rotary_knife_{kind}.bin").read_bytes()
+            blob = cb.patch(blob, 48, struct.pack("<qI", 1_080_001, 3))
+            table = CamTable.from_bytes(blob)
+            work = tmp_path / kind
+            work.mkdir()
+            if where == "x86-64":
+                m = instructions.host_counts(work, blob, table.format, 300, shared=tmp_path)
+            else:
+                m = instructions.m4_counts(work, blob, table.format, 100, shared=tmp_path)
+            what = (f"{where} rotary_knife_{kind} N/D = 1080001/3: runtime {m.runtime_inside:g} inside / "
+                    f"{m.runtime_wide:g} any int64, minimal {m.minimal:g}: {m.ratio_inside:.2f}x / {m.ratio_wide:.2f}x")  # fmt: skip
+            print(what)
+            assert m.checksums_match, what
+            assert m.ratio_inside <= instructions.LIMITS["inside"], what  # inside: the cost of D = 1
+            assert m.ratio_wide <= limit, what
+
+
 def _fine_tables():
     """Tables with many points, where the compiler picks W - Qy = 31 (a position scale past 2^30,
     which 32-bit cores multiply in 64 bits)."""
@@ -265,8 +303,7 @@ def test_cortex_m4_flash_ram_stack(tmp_path, capsys):
     for f in report:
         assert f["ram_bytes"] == 0  # no mutable globals
         for stem, stack in f["stack_per_call"].items():
-            limits = NET_STACK_LIMIT if stem.startswith("rotary_knife") else STACK_LIMIT
-            for api, limit in limits.items():
+            for api, limit in STACK_LIMIT.items():
                 assert 0 < stack[api] <= limit, (f["opt"], stem, api, stack[api])
 
 

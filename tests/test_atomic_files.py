@@ -58,6 +58,7 @@ def test_compile_writes_its_files_through_the_atomic_path(tmp_path):
     assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
 
 
+@pytest.mark.slow
 def test_plot_replaces_a_symlinked_output_not_its_target(tmp_path):
     victim = tmp_path / "victim.txt"
     victim.write_text("precious")

@@ -272,6 +272,7 @@ def test_large_period_is_sampled_not_skipped():
     assert r["max_error_counts"] <= r["predicted_error_counts"]
 
 
+@pytest.mark.slow
 def test_table_of_2_20_points():
     profile = rise_return("cycloidal", stroke=100.0)
     table = compile_table(profile, interp="linear", points=2**20 + 1, master_counts=2**22,
@@ -340,6 +341,7 @@ def test_compile_cli_bad_input_is_one_line(args, message, tmp_path):
     assert len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
 
 
+@pytest.mark.slow
 def test_generated_firmware_tables_are_reproducible():
     """Regenerate firmware_tables/ and compare byte for byte with the committed files."""
     from conftest import ROOT

@@ -11,6 +11,9 @@ from ecam import CamTable
 
 SEED_CAMS = ("combination_drrd", "modified_sine")
 
+# the whole demo runs once for the module (about 3 s): out of the quick subset
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):

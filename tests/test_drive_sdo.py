@@ -326,6 +326,7 @@ def fuzz_frame(rng: random.Random) -> bytes:
     return frame
 
 
+@pytest.mark.slow
 def test_fuzz_the_sdo_server(sdo, table, caplog):
     """Random frames never raise, get one answer at most (never a general error, which would be a
     defect), never change the running table, and leave a server that answers a good read."""

@@ -309,6 +309,7 @@ def test_a_drum_turning_backwards_runs_endless_negative():
     assert result.certificate.max_error_units <= result.certificate.predicted_error_units <= 0.01
 
 
+@pytest.mark.slow
 def test_tiny_segments_next_to_huge_ones():
     """A 1e-6-of-the-period dwell exports in every format; a rise over 1e-6 of the period has an
     enormous acceleration and fails in one line instead of giving a bad table."""

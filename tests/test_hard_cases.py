@@ -68,6 +68,7 @@ def test_extreme_boundary_polynomials(v, a, j, seven):
     assert np.isfinite(r["max_error_counts"]) and r["max_error_counts"] <= r["predicted_error_counts"]
 
 
+@pytest.mark.slow
 @given(st.integers(-(2**63), 2**63 - 1))
 def test_any_int64_master_position(m):
     profile = CamProfile((Segment(0.0, 360.0, 0.0, 0.0, ecam.law("constant_velocity")),), 360.0)

@@ -89,6 +89,7 @@ def tables():
 # ---------------------------------------------------------------------------------------------
 # BaseNode402, the standard master (threads, bounded waits)
 
+@pytest.mark.slow
 def test_base_node_402_enables_csp_streams_targets_and_reads_positions():
     channel = f"test-hil-402-{next(_channels)}"
     network = canopen.Network()
@@ -204,6 +205,7 @@ def test_power_state_machine_follows_the_controlword(rig):
         assert statusword == cia402.STATUSWORD_OF_STATE[state] | cia402.SW_REMOTE, (hex(controlword), hex(statusword))
 
 
+@pytest.mark.slow
 @given(st.lists(st.sampled_from([0x00, 0x02, 0x06, 0x07, 0x0F, 0x0B, 0x80, 0x8F, 0x86]),
                 max_size=12))
 def test_statusword_always_decodes_to_the_drive_state_for_base_node_402(controlwords):
@@ -432,6 +434,7 @@ def test_master_position_wraps_past_int32_without_a_jump(rig, tables):
 # ---------------------------------------------------------------------------------------------
 # The `hil-sim drive` command, driven by an ordinary canopen master
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", [None, "drive_side.toml"])
 def test_drive_command_serves_a_canopen_master_until_stopped(scene):
     import argparse

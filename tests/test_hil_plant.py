@@ -396,6 +396,7 @@ def check_jerk_limited(master, t_end, max_acceleration, max_jerk, points=20_001)
     return position, velocity
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, derandomize=True)
 @given(speed=st.floats(1e1, 1e8).flatmap(lambda s: st.sampled_from([s, -s])),
        ramp_s=st.floats(0.01, 1.0), jerk_factor=st.floats(1.0, 100.0))

@@ -338,6 +338,7 @@ def test_find_max_speed_brackets_the_limit():
     assert not run_scene(trial_scene(scene("stiff_coupling"), 1.05 * result["speed"])).passed
 
 
+@pytest.mark.slow
 def test_find_max_speed_of_a_scene_that_fails_at_any_speed_stops():
     """The soft scene's drive hunts at any speed (its torque is clamped in most cycles): the
     search halves until a trial would be too long, and says that nothing passed."""
@@ -383,6 +384,7 @@ def test_scene_cam_path_is_relative_to_the_scene(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Command line
 
+@pytest.mark.slow
 def test_cli_sim_json_and_exit_status(capsys, tmp_path):
     plot = tmp_path / "plot.png"
     status = main(["sim", str(SCENES / "stiff_coupling.toml"), "--json", "--plot", str(plot)])

@@ -170,6 +170,7 @@ def test_net_stroke_round_trips_through_to_toml():
     assert "net_stroke" not in ecam.load_cam(ROOT / "ecam" / "cams" / "modified_sine.toml").to_toml()
 
 
+@pytest.mark.slow
 def test_check_prints_peaks_per_master_unit_and_at_a_speed():
     run = ecam_cli("check", KNIFE, "--speed", "120 periods/min")
     assert run.returncode == 0, run.stderr

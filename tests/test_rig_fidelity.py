@@ -121,6 +121,7 @@ def test_a_scene_can_force_the_model():
     assert compliance["why"] == "drive.model = 'rigid'"
 
 
+@pytest.mark.slow
 def test_an_effect_left_unsaid_can_flip_a_verdict():
     """The stiff scene says its reducer has no backlash; with the 3 arcmin of a standard
     planetary gearhead the cam's torque reversals hammer the flanks through the stiff
@@ -185,6 +186,7 @@ def test_a_master_that_does_not_lead_makes_the_drive_lag_a_cycle():
     assert lagging.check("tracking_error").value > 2.0 * on_time.check("tracking_error").value
 
 
+@pytest.mark.slow
 def test_the_effects_are_measured_on_a_quick_run():
     """A long run at a constant master repeats its cam periods: the effects are measured on its
     first 3 periods at cruise (the stiff scene: 1 Hz cam, 1 kHz bus: 3000 cycles), not 13 times

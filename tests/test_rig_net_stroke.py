@@ -32,6 +32,7 @@ def _fast(scene):
     return run_scene(scene, path="fast")
 
 
+@pytest.mark.slow
 def test_the_shipped_knife_passes_from_standstill_over_the_bus(knife):
     report = run_scene(knife)
     assert report.passed, report.to_text()
@@ -50,6 +51,7 @@ def test_the_shipped_knife_passes_from_standstill_over_the_bus(knife):
         (0.0674 + 0.5 * 8.7e-4) * 0.2**2 / 0.97 / 5.43e-4, rel=0.1)
 
 
+@pytest.mark.slow
 def test_drive_side_knife_follows_the_same_cam(knife):
     controller = _fast(replace(knife, duration=DurationSpec(seconds=3.0)))
     drive = _fast(replace(knife, cam_mode="drive", duration=DurationSpec(seconds=3.0)))
@@ -57,6 +59,7 @@ def test_drive_side_knife_follows_the_same_cam(knife):
     assert drive.check("tracking_error").value < 0.2 * knife.limits.tracking_error
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cam_mode", ["controller", "drive"])
 def test_positions_past_2_to_the_31_counts_on_the_bus(knife, cam_mode):
     """1e6 counts per drum degree: 3.6e8 counts per cut, so eight cuts take the INTEGER32
@@ -71,6 +74,7 @@ def test_positions_past_2_to_the_31_counts_on_the_bus(knife, cam_mode):
     assert report.check("faults").value == 0
 
 
+@pytest.mark.slow
 def test_a_drum_turning_backwards(knife):
     """A negative master speed runs the cam backwards: the drum advances by -360 deg a cut."""
     back = replace(knife, master=replace(knife.master, speed_rpm=-120.0),
@@ -87,6 +91,7 @@ def _cam_in_knife(knife, cam_mode):
                    limits=replace(knife.limits, settle_s=1.0), duration=DurationSpec(seconds=3.0))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cam_mode", ["controller", "drive"])
 def test_cam_in_onto_the_moving_knife(knife, cam_mode):
     """From rest onto the moving cam, through the wraps: controller-side the controller streams
@@ -98,6 +103,7 @@ def test_cam_in_onto_the_moving_knife(knife, cam_mode):
     assert report.summary["master"]["periods"] > 5.0
 
 
+@pytest.mark.slow
 def test_a_drive_side_cam_in_over_canopen_is_the_bus_free_run_and_joins_without_a_jump(knife):
     scene = _cam_in_knife(knife, "drive")
     over_bus, bus_free = run_scene(scene), _fast(scene)
@@ -120,6 +126,7 @@ def test_a_drive_side_cam_in_over_canopen_is_the_bus_free_run_and_joins_without_
     assert frames > run_scene(replace(scene, cam_mode="controller")).summary["bus"]["frames"]
 
 
+@pytest.mark.slow
 def test_the_start_up_transient_is_left_out_only_when_asked(knife):
     """A master that jumps to full speed at t = 0 (profile constant) leaves the knife behind
     for a moment: the tracking check fails on it unless the settling time leaves it out."""
@@ -138,6 +145,7 @@ def knife_search(knife):
     return find_max_speed(knife, progress=lines.append), lines
 
 
+@pytest.mark.slow
 def test_find_max_speed_on_the_knife(knife, knife_search):
     """Issue 9, item 6 on the shipped scene: one progress line per trial, the result in master
     units/s and cuts per minute with the check that limited it, every trial long enough to reach
@@ -172,6 +180,7 @@ def test_find_max_speed_on_the_knife(knife, knife_search):
     assert not faster.passed
 
 
+@pytest.mark.slow
 def test_an_infeasible_trial_is_a_failed_speed_in_the_scene_words(knife):
     """A cam-in that cannot engage before the master reaches engage_at is a failed speed with
     its reason (the scene's field in master deg, the speed tried), not the end of the search."""
@@ -209,6 +218,7 @@ def test_a_cam_in_beyond_the_slave_limits_is_refused_in_the_scene_words(knife):
                        f"master at 3000 deg/s")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cam_mode", ["controller", "drive"])
 def test_a_cam_with_a_negative_net_stroke(knife, cam_mode):
     """The hard case of a negative net stroke on the rig: the web runs forwards, the drum turns

@@ -161,6 +161,8 @@ def test_find_max_speed_on_the_knife(knife, knife_search):
     assert result["limiting_check"].startswith("FAIL  ")
     assert result["limiting_check"].split("FAIL  ")[1].split(":")[0] in result["failed_checks"]
     assert speed < result["failing_speed"] <= 1.05 * speed
+    # a relative tolerance is relative to the speed found, not to an early bracket's
+    assert result["resolution"] >= 0.01 * speed
     text = format_search(result)
     assert f"max speed: {speed:.6g} deg/s = {60.0 * speed / 360.0:.6g} periods per minute" in text
     assert f"limited by: at {result['failing_speed']:.6g} deg/s FAIL  " in text

@@ -160,6 +160,8 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
             high = middle
     if low is not None:
         low, high, flipped = _monotone(runs, low, high)
+        if why.startswith("the requested tolerance"):  # relative: of the speed found, not the bracket's
+            resolution = max(resolution, tolerance * low)
         if flipped is not None and flipped[0] > resolution:
             resolution, why = flipped
     confirmed = False

@@ -160,8 +160,10 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
             high = middle
     if low is not None:
         low, high, flipped = _monotone(runs, low, high)
-        if why.startswith("the requested tolerance"):  # relative: of the speed found, not the bracket's
-            resolution = max(resolution, tolerance * low)
+        if tolerance * low > resolution:  # relative: of the speed found, not of a first bracket
+            resolution = tolerance * low
+            if not why.startswith("the requested tolerance"):
+                why = f"the requested tolerance {tolerance:g}, coarser than {why}"
         if flipped is not None and flipped[0] > resolution:
             resolution, why = flipped
     confirmed = False

@@ -189,3 +189,62 @@ def linear_step(phi: np.ndarray, gamma: np.ndarray):
     step = namespace["step"]
     step.source = source
     return step
+
+
+def friction_step(motor_column, load_column, speeds: tuple[int, int], limits: tuple[float, float],
+                  iterations: int):
+    """``correct(free) -> (x', f_motor, f_load)``: a step's end state with the Coulomb friction
+    torques the step needs, as one straight-line function of plain floats (the rig runs it on
+    every sub-step, where a loop over lists costs more than its arithmetic).
+
+    The end speeds are linear in the two friction torques, ``w_end = free + G f`` with G from
+    the mode's columns of the two shaft torques (``motor_column``, ``load_column``); each torque
+    is the one that stops its shaft, clipped to its limit, solved by projected Gauss-Seidel over
+    at most ``iterations`` sweeps (one exact sweep with a single friction). A shaft held by
+    stiction ends exactly at rest. Every expression is :meth:`hil_sim.plant.Plant`'s former loop
+    term for term, in the same order, so the result is the same float for float.
+    """
+    motor = [float(v) for v in motor_column]
+    load = [float(v) for v in load_column]
+    n = len(motor)
+    i_m, i_l = speeds
+    limit_m, limit_l = (float(v) for v in limits)
+    g11, g12, g21, g22 = motor[i_m], load[i_m], motor[i_l], load[i_l]
+    values = [motor, load, [g11, g12, g21, g22], [limit_m, limit_l]]
+    if not all(math.isfinite(v) for row in values for v in row):
+        raise InputError("friction step columns and limits should be finite")
+    states = [f"x{i}" for i in range(n)]
+    lines = [f"def correct(free):",
+             f"    {', '.join(states)}{',' if n == 1 else ''} = free",
+             f"    v_m = x{i_m}",
+             f"    v_l = x{i_l}",
+             "    f_m = f_l = 0.0",
+             f"    for _ in range({iterations if limit_m and limit_l else 1}):",
+             "        previous_m = f_m",
+             "        previous_l = f_l"]
+    if limit_m:
+        lines += [f"        f_m = -(v_m + {g12!r} * f_l) / {g11!r}",
+                  f"        f_m = {limit_m!r} if f_m > {limit_m!r} else "
+                  f"({-limit_m!r} if f_m < {-limit_m!r} else f_m)"]
+    if limit_l:
+        lines += [f"        f_l = -(v_l + {g21!r} * f_m) / {g22!r}",
+                  f"        f_l = {limit_l!r} if f_l > {limit_l!r} else "
+                  f"({-limit_l!r} if f_l < {-limit_l!r} else f_l)"]
+    lines += ["        if f_m == previous_m and f_l == previous_l:",
+              "            break",
+              "    if f_l:",
+              "        out = [" + ", ".join(f"{s} + {a!r} * f_m + {b!r} * f_l"
+                                         for s, a, b in zip(states, motor, load)) + "]",
+              "    else:",
+              "        out = [" + ", ".join(f"{s} + {a!r} * f_m" for s, a in zip(states, motor)) + "]"]
+    if limit_m:
+        lines += [f"    if {-limit_m!r} < f_m < {limit_m!r}:", f"        out[{i_m}] = 0.0"]
+    if limit_l:
+        lines += [f"    if {-limit_l!r} < f_l < {limit_l!r}:", f"        out[{i_l}] = 0.0"]
+    lines.append("    return out, f_m, f_l")
+    source = "\n".join(lines) + "\n"
+    namespace: dict = {}
+    exec(compile(source, "<hil_sim.discretize.friction_step>", "exec"), namespace)  # noqa: S102
+    correct = namespace["correct"]
+    correct.source = source
+    return correct

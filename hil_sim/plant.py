@@ -44,7 +44,7 @@ import numpy as np
 from ecam import validate
 from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
-from hil_sim.discretize import expm, linear_step, with_lag, zero_order_hold
+from hil_sim.discretize import expm, friction_step, linear_step, with_lag, zero_order_hold
 
 __all__ = ["ARCMIN", "MODELS_RUN", "MechanicalEffects", "Plant", "RigidPlant", "TwoMassPlant",
            "FullPlant", "expm", "zero_order_hold", "choose_model", "significant_harmonic_hz"]
@@ -210,6 +210,14 @@ class Plant:
         else:
             self._friction_limits = (effects.motor_coulomb_friction,
                                      effects.load_coulomb_friction)
+        # the friction solve of each mode, compiled once (its columns and limits are constants)
+        self._friction_steps = {}
+        if self._frictional:
+            for mode in (self._contact, self._gap):
+                if mode is not None:
+                    self._friction_steps[id(mode)] = friction_step(
+                        mode.motor_column, mode.load_column, self._speeds,
+                        self._friction_limits, _STICTION_ITERATIONS)
         self._x = [0.0] * phi.shape[0]
         self._torque = 0.0  # the last command
         self._friction = (0.0, 0.0)
@@ -279,6 +287,28 @@ class Plant:
         per bus cycle, and attribute lookups cost more than their arithmetic."""
         step = self._contact.step_torque
         plant = self
+        if self.model == "two_mass" and self._frictional and not self._half_gap:
+            # friction without backlash (the commonest full model): the contact step and the
+            # friction solve called directly, the readings as the general branch below gives them
+            k, c, r = self._k, self._c, self._r
+            step3 = self._contact.step
+            correct = self._friction_steps[id(self._contact)]
+
+            def advance(torque):
+                torque = float(torque)
+                x, f_m, f_l = correct(step3(plant._x, torque, 0.0, 0.0))
+                plant._x = x
+                plant._torque = torque
+                plant._friction = (f_m, f_l)
+                twist = x[2]
+                if twist > 0.0:
+                    wind = twist - 0.0
+                elif twist < -0.0:
+                    wind = twist + 0.0
+                else:
+                    return x[0], x[1], 0.0, 0.0
+                return x[0], x[1], k * wind + c * (r * x[1] - x[3]), wind
+            return advance
         if self.model == "two_mass" and (self._half_gap or self._frictional):
             k, c, r, h = self._k, self._c, self._r, self._half_gap
             full_step = self.step
@@ -326,33 +356,9 @@ class Plant:
         return advance
 
     def _with_friction(self, free: list, mode: _Mode) -> list:
-        """The end state with the Coulomb friction torques the step needs (module docstring)."""
-        limit_m, limit_l = self._friction_limits
-        i_m, i_l = self._speeds
-        motor, load = mode.motor_column, mode.load_column
-        # End speeds are linear in the two friction torques: w_end = free + G f.
-        g11, g12, g21, g22 = motor[i_m], load[i_m], motor[i_l], load[i_l]
-        v_m, v_l = free[i_m], free[i_l]
-        f_m = f_l = 0.0
-        for _ in range(_STICTION_ITERATIONS if limit_m and limit_l else 1):
-            previous_m, previous_l = f_m, f_l
-            if limit_m:
-                f_m = -(v_m + g12 * f_l) / g11
-                f_m = limit_m if f_m > limit_m else (-limit_m if f_m < -limit_m else f_m)
-            if limit_l:
-                f_l = -(v_l + g21 * f_m) / g22
-                f_l = limit_l if f_l > limit_l else (-limit_l if f_l < -limit_l else f_l)
-            if f_m == previous_m and f_l == previous_l:  # converged (both sliding: at once)
-                break
-        if f_l:
-            out = [v + a * f_m + b * f_l for v, a, b in zip(free, motor, load)]
-        else:
-            out = [v + a * f_m for v, a in zip(free, motor)]
-        # A shaft held by stiction ends exactly at rest, not at a rounding residue.
-        if limit_m and -limit_m < f_m < limit_m:
-            out[i_m] = 0.0
-        if limit_l and -limit_l < f_l < limit_l:
-            out[i_l] = 0.0
+        """The end state with the Coulomb friction torques the step needs (module docstring;
+        :func:`hil_sim.discretize.friction_step`)."""
+        out, f_m, f_l = self._friction_steps[id(mode)](free)
         self._friction = (f_m, f_l)
         return out
 

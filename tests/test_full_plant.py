@@ -127,3 +127,56 @@ def test_bad_effects_are_one_line(field, value, message):
     with pytest.raises(InputError) as info:
         Effects(**{field: value})
     assert str(info.value) == message
+
+
+def _friction_by_loop(free, motor, load, speeds, limits, iterations):
+    """The friction solve as the plant wrote it as a loop over lists (the oracle of the compiled
+    one): projected Gauss-Seidel on w_end = free + G f, each torque clipped to its limit."""
+    limit_m, limit_l = limits
+    i_m, i_l = speeds
+    g11, g12, g21, g22 = motor[i_m], load[i_m], motor[i_l], load[i_l]
+    v_m, v_l = free[i_m], free[i_l]
+    f_m = f_l = 0.0
+    for _ in range(iterations if limit_m and limit_l else 1):
+        previous_m, previous_l = f_m, f_l
+        if limit_m:
+            f_m = min(max(-(v_m + g12 * f_l) / g11, -limit_m), limit_m)
+        if limit_l:
+            f_l = min(max(-(v_l + g21 * f_m) / g22, -limit_l), limit_l)
+        if f_m == previous_m and f_l == previous_l:
+            break
+    if f_l:
+        out = [v + a * f_m + b * f_l for v, a, b in zip(free, motor, load)]
+    else:
+        out = [v + a * f_m for v, a in zip(free, motor)]
+    if limit_m and -limit_m < f_m < limit_m:
+        out[i_m] = 0.0
+    if limit_l and -limit_l < f_l < limit_l:
+        out[i_l] = 0.0
+    return out, f_m, f_l
+
+
+def test_the_compiled_friction_solve_is_the_loop_float_for_float():
+    """hil_sim.discretize.friction_step (straight-line code with the constants in) gives the
+    loop's floats exactly: one friction or two, sliding or held, rigid (one shaft) or two-mass."""
+    from hil_sim.discretize import friction_step
+
+    rng = np.random.default_rng(20261125)
+    cases = 0
+    for n, speeds in ((2, (1, 1)), (3, (1, 1)), (4, (1, 3)), (5, (1, 3))):
+        for _ in range(60):
+            motor = list(rng.normal(size=n) * 10.0 ** rng.integers(-6, 2))
+            load = list(rng.normal(size=n) * 10.0 ** rng.integers(-6, 2))
+            motor[speeds[0]] = abs(motor[speeds[0]]) + 1e-6  # a torque speeds its own shaft up
+            load[speeds[1]] = abs(load[speeds[1]]) + 1e-6
+            limits = [float(rng.choice([0.0, rng.uniform(0.01, 2.0)])) for _ in range(2)]
+            if n < 4:
+                limits[1] = 0.0  # one shaft: both frictions act on it as one
+            if not any(limits):
+                continue
+            correct = friction_step(motor, load, speeds, limits, 12)
+            for _ in range(20):
+                free = list(rng.normal(size=n) * 10.0 ** rng.integers(-8, 1))
+                assert correct(free) == _friction_by_loop(free, motor, load, speeds, limits, 12)
+                cases += 1
+    assert cases > 2000

@@ -57,7 +57,6 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
     axis = setup.build(cycle_s, plan.initial_counts)
     axis.restart()  # OPERATION ENABLED starts from the actual position, as the drive's
     drive_side = scene.cam_mode == "drive"
-    targets, velocities = (a.tolist() for a in wire_set_points(plan, drive_side=False))
     recorder = Recorder(plan.cycles)
     recorder.series["statusword"][:] = _STATUSWORD_CSP
     following = recorder.series["following_error"]
@@ -71,6 +70,9 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
         cam.verify_download(run.cam.table.to_bytes())
         cam.write_command(CAM_COMMAND_ACTIVATE)
         engage = plan.engaged_from or 0
+    # the controller's set points as Python numbers, only for the cycles that use them (drive-
+    # side, a cam-in's approach): a list per cycle of a 5e6-cycle run is hundreds of MB
+    targets, velocities = (a[:engage].tolist() for a in wire_set_points(plan, drive_side=False))
     stopped = None
     emcy = []
     cycle = axis.cycle

@@ -94,8 +94,11 @@ class Certificate:
         The cam's net stroke per period in slave units (0 for none).
     net_stroke_residual_counts : float
         |stored net stroke - the cam's| in counts per period: 0 when the cam's net stroke
-        (net_stroke x slave_counts_per_unit, as decimals) is a fraction with a denominator below
-        2^32, else the error of the closest such fraction; k periods away it adds k times this.
+        (net_stroke x slave_counts_per_unit, as decimals) is stored exactly, else the difference
+        (see :func:`ecam.compile.net_stroke_fraction`); k periods away it adds k times this.
+    points : int or None
+        Stored points of the table the certificate speaks for (``report['points']``); None only
+        for a certificate built by hand without it.
     """
 
     slave_counts_per_unit: float
@@ -109,6 +112,7 @@ class Certificate:
     tolerance_counts: float | None = None
     net_stroke_units: float = 0.0
     net_stroke_residual_counts: float = 0.0
+    points: int | None = None
 
     def __post_init__(self):
         # The compiler computes these in numpy: stored as Python floats, so the repr is plain and
@@ -119,6 +123,8 @@ class Certificate:
         object.__setattr__(self, "joints_off_points", tuple(float(x) for x in self.joints_off_points))
         if self.tolerance_counts is not None:
             object.__setattr__(self, "tolerance_counts", float(self.tolerance_counts))
+        if self.points is not None:
+            object.__setattr__(self, "points", int(self.points))
 
     @property
     def predicted_error_units(self) -> float:

@@ -128,15 +128,40 @@ def net_stroke_fraction(net_stroke: float, slave_counts_per_unit: float) -> tupl
     """The net stroke per period in slave counts as the table stores it: a fraction N/D, D < 2^32.
 
     The cam's net stroke in counts is taken as the two numbers are written (their shortest
-    decimal forms: 360.0 deg x 1000.0001 counts/deg = 360000.036 = 90000009/250 exactly). When
-    that fraction's denominator is below 2^32 it is stored as is, and the lookup never drifts
-    from it; otherwise the closest fraction with such a denominator is stored (0.3333333333333333
-    becomes 1/3), and the difference is the residual (second value, counts per period) that the
-    certificate reports.
+    decimal forms: 360.0 deg x 1000.0001 counts/deg = 360000.036 = 90000009/250 exactly), except
+    where that product is float rounding away from a much simpler fraction: both numbers are
+    float64, each within 2^-52 (relative) of the value meant, so a fraction within 2^-50 of the
+    product whose denominator is far below what a coincidence gives (at most 2^-10 / sqrt of
+    that distance; an integer always qualifies) is the value meant, and is stored. So a drum of
+    2^26 counts per revolution written as 360 deg x 186413.51111111112 counts/deg (2^26 / 360 in
+    float64, whose decimal product is 67108864.0000000032) stores 67108864/1, whose rounding adds
+    nothing to a lookup, rather than 20971520000000001/312500000, whose rounding of k N/D adds
+    up to half a count. Otherwise, when the decimal product's denominator is below 2^32 it is
+    stored as is, and the lookup never drifts from it; else the closest fraction with such a
+    denominator is stored (0.3333333333333333 becomes 1/3). The difference from the decimal
+    product is the residual (second value, counts per period) that the certificate reports.
     """
     exact = Fraction(repr(float(net_stroke))) * Fraction(repr(float(slave_counts_per_unit)))
+    width = abs(exact) * Fraction(1, 2**50)
+    if width:
+        simple = _simplest_between(exact - width, exact + width)
+        if simple.denominator <= max(1.0, 2.0**-10 / math.sqrt(width)) and simple.denominator <= MAX_NET_DENOMINATOR:
+            return simple, float(abs(simple - exact))
     stored = exact if exact.denominator <= MAX_NET_DENOMINATOR else exact.limit_denominator(MAX_NET_DENOMINATOR)
     return stored, float(abs(stored - exact))
+
+
+def _simplest_between(low: Fraction, high: Fraction) -> Fraction:
+    """The fraction with the smallest denominator in [low, high] (the smallest magnitude among
+    integers), by continued fractions."""
+    if low <= 0 <= high:
+        return Fraction(0)
+    if high < 0:
+        return -_simplest_between(-high, -low)
+    whole = math.floor(low)
+    if whole == low or whole + 1 <= high:
+        return Fraction(math.ceil(low))
+    return whole + 1 / _simplest_between(1 / (high - whole), 1 / (low - whole))
 
 
 def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) -> list[int]:
@@ -313,6 +338,7 @@ class _Job:
             joints_off_points=tuple(off_grid),
             net_stroke_units=self.profile.net_stroke or 0.0,
             net_stroke_residual_counts=self.net_residual,
+            points=f.points,
         )
         return certificate.measured(self.measure(table, data, progress)) if certify else certificate
 

@@ -148,6 +148,22 @@ class CamTable:
                 object.__setattr__(self, name, array)
         object.__setattr__(self, "_coefficients", None)
 
+    # equality ----------------------------------------------------------------------------------
+    def __eq__(self, other):
+        """Tables are equal when they hold the same format and the same stored values, so they
+        write the same blob and look up the same everywhere: ``CamTable.from_bytes(t.to_bytes())
+        == t``. The certificate (what the compiler proved and measured about the table, absent
+        from a blob) is not compared."""
+        if not isinstance(other, CamTable):
+            return NotImplemented
+        return self.format == other.format and all(
+            (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
+            for a, b in ((self.positions, other.positions), (self.slopes, other.slopes),
+                         (self.curvatures, other.curvatures)))
+
+    def __hash__(self):
+        return hash((self.format, self.crc32))
+
     # convenience -----------------------------------------------------------------------------
     @property
     def report(self) -> dict:
@@ -569,23 +585,108 @@ _BERNSTEIN = {
 }
 
 
+#: Intervals the loader's proof handles at once: its memory stays a few MB whatever the table.
+PROOF_CHUNK = 1 << 16
+
+
 def loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits,
                  tau_bits, tau_recip, slope_preshift):
     """The loader's overflow proof (FORMAT.md "Overflow proof"), in exact integers: None when every
     lookup of the table keeps its intermediates inside int64 and both outputs inside
     -(2^31 - 1)..2^31 - 1, else (status, message) of the first failing rule, interval by interval,
     rule by rule, exactly as the C loader decides. The compiler's float proof (:func:`overflow_proof`)
-    implies this one."""
+    implies this one.
+
+    Linear in the points and lean in memory: the intervals are taken :data:`PROOF_CHUNK` at a time;
+    in each, a float64 screen passes every interval whose every bound, rounding error included,
+    lies clearly inside its limit (every table the compiler writes), and only the others are
+    decided in exact integers. An interval the screen passes passes every rule exactly, so the
+    first failure found in exact integers, in interval order, is the C loader's.
+    """
+    args = (degree, position_bits, slope_bits, curvature_bits, work_bits, tau_bits, tau_recip, slope_preshift)
+    intervals = len(positions) - 1
+    for start in range(0, intervals, PROOF_CHUNK):
+        stop = min(start + PROOF_CHUNK, intervals)
+        window = slice(start, stop + 1)
+        arrays = [None if a is None else np.asarray(a[window]) for a in (positions, slopes, curvatures)]
+        doubtful = np.flatnonzero(~_screen_passes(*arrays, *args))
+        if doubtful.size:
+            failure = _exact_proof(*arrays, doubtful, *args)
+            if failure is not None:
+                interval, status, what = failure
+                return status, f"blob could overflow in the lookup: interval {start + interval}: {what}"
+    return None
+
+
+_SCREEN_ERROR = 2.0**-40  # relative rounding error allowed for each float bound (about 2^-48 at most)
+
+
+def _screen_passes(positions, slopes, curvatures, degree, position_bits, slope_bits, curvature_bits, work_bits,
+                   tau_bits, tau_recip, slope_preshift) -> np.ndarray:
+    """Per interval, True when float64 bounds prove every rule of the overflow proof with room to
+    spare. Stored words times powers of two are exact in float64; every derived value carries a
+    bound of its rounding error (relative to the sum of the magnitudes it adds), so each upper
+    bound below is above the exact value it bounds."""
+    n = degree
+    inflate = 1 + _SCREEN_ERROR
+
+    def scaled(array, bits):
+        return None if array is None else array.astype(np.float64) * 2.0 ** (work_bits - bits)
+
+    y = scaled(positions, position_bits)
+    a, b = scaled(slopes, slope_bits), scaled(curvatures, curvature_bits)
+    c = hermite_coefficients(n, y, a, b)
+    # the same combinations of the magnitudes: each c_k's rounding error is below 2^-50 of it
+    magnitude = hermite_magnitudes(n, np.abs(y), None if a is None else np.abs(a), None if b is None else np.abs(b))
+    upper = [np.abs(ck) + m * _SCREEN_ERROR for ck, m in zip(c, magnitude)]
+    y0, y1 = y[:-1], y[1:]
+    two63 = 2.0**63
+    tau_max = 2.0**tau_bits - 1
+    ok = (np.abs(y0) < 2.0**62) & (np.abs(y1) < 2.0**62)
+    r = upper[n - 1]
+    ok &= r * tau_max * inflate < two63
+    for k in range(n - 1, 0, -1):
+        r = (upper[k - 1] + r + 1) * inflate
+        ok &= r * tau_max * inflate < two63
+    ok &= (np.abs(y0) + r + 2.0**work_bits) * inflate < two63
+    scale, weights = _BERNSTEIN[n]
+    reach_limit = scale * (2.0**31 - 1) * 2.0**work_bits
+    for row in weights:
+        value = scale * y0
+        spread = scale * np.abs(y0)
+        for k, weight in enumerate(row, start=1):
+            value = value + weight * c[k - 1]
+            spread = spread + weight * (magnitude[k - 1] + upper[k - 1])
+        ok &= (np.abs(value) + spread * _SCREEN_ERROR + scale * n) * inflate < reach_limit
+    q = n * upper[n - 1]
+    for k in range(n - 1, 0, -1):
+        ok &= q * tau_max * inflate < two63
+        q = (k * upper[k - 1] + q + 1) * inflate
+    ok &= q < two63
+    s = q / 2.0**slope_preshift + 1  # above ceil(q_1 / 2^P)
+    product = s * float(tau_recip) * inflate
+    ok &= product < two63
+    ok &= product < (2.0**31 - 1) * 2.0 ** (SLOPE_BITS + tau_bits + work_bits - slope_preshift)
+    return ok
+
+
+def _exact_proof(positions, slopes, curvatures, intervals, degree, position_bits, slope_bits, curvature_bits,
+                 work_bits, tau_bits, tau_recip, slope_preshift):
+    """The proof in exact integers for the listed intervals (indices into the given points, in
+    ascending order): (interval, status, what it checks) of the first failure, or None."""
     n = degree
     two63 = 1 << 63
     tau_max = (1 << tau_bits) - 1
 
     def exact(array, bits):
-        return None if array is None else np.array([int(v) << (work_bits - bits) for v in array.tolist()], dtype=object)
+        if array is None:
+            return None
+        ends = np.stack([array[intervals], array[intervals + 1]])  # row 0: point i, row 1: point i + 1
+        return np.array([[int(v) << (work_bits - bits) for v in row] for row in ends.tolist()], dtype=object)
 
     y = exact(positions, position_bits)
-    c = hermite_coefficients(degree, y, exact(slopes, slope_bits), exact(curvatures, curvature_bits))
-    y0, y1 = y[:-1], y[1:]
+    c = [ck[0] for ck in hermite_coefficients(degree, y, exact(slopes, slope_bits), exact(curvatures, curvature_bits))]
+    y0, y1 = y[0], y[1]
     magnitude = [np.abs(ck) for ck in c]  # |c_1| .. |c_n|
     failures = {}  # status -> (bool per interval, what it checks)
     point_limit = 1 << 62
@@ -625,12 +726,13 @@ def loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bit
     failures["ECAM_E_SLOPE_RANGE"] = (product > (2**31 - 1) << out_shift,
                                       f"the slope should stay within -(2^31 - 1)..2^31 - 1 at slope_preshift "
                                       f"{slope_preshift}")
-    first = {status: np.flatnonzero(bad.astype(bool)) for status, (bad, _) in failures.items()}
-    found = [(int(where[0]), order, status) for order, (status, where) in enumerate(first.items()) if where.size]
+    first = {status: np.flatnonzero(np.asarray(bad, dtype=bool)) for status, (bad, _) in failures.items()}
+    found = [(int(intervals[where[0]]), order, status) for order, (status, where) in enumerate(first.items())
+             if where.size]
     if not found:
         return None
     interval, _, status = min(found)
-    return status, f"blob could overflow in the lookup: interval {interval}: {failures[status][1]}"
+    return interval, status, failures[status][1]
 
 
 def hermite_coefficients(degree, y, s=None, c=None) -> list:
@@ -649,6 +751,21 @@ def hermite_coefficients(degree, y, s=None, c=None) -> list:
     b0, b1 = c[:-1], c[1:]
     return [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
             6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+
+
+def hermite_magnitudes(degree, y, s=None, c=None) -> list:
+    """The combinations of :func:`hermite_coefficients` with every weight made positive, on
+    magnitudes ``|y|``, ``|s|``, ``|c|``: a bound of each |c_k| and the scale of its float
+    rounding error."""
+    d = y[1:] + y[:-1]
+    if degree == 1:
+        return [d]
+    a0, a1 = s[:-1], s[1:]
+    if degree == 3:
+        return [a0, 3 * d + 2 * a0 + a1, a0 + a1 + 2 * d]
+    b0, b1 = c[:-1], c[1:]
+    return [a0, b0, 10 * d + 6 * a0 + 4 * a1 + 3 * b0 + b1, 15 * d + 8 * a0 + 7 * a1 + 3 * b0 + 2 * b1,
+            6 * d + 3 * a0 + 3 * a1 + b0 + b1]
 
 
 def _coefficients_float(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits):

@@ -248,3 +248,140 @@ def friction_step(motor_column, load_column, speeds: tuple[int, int], limits: tu
     correct = namespace["correct"]
     correct.source = source
     return correct
+
+
+def hold_trajectory(a: np.ndarray, b: np.ndarray, dt: float, samples: int) -> np.ndarray:
+    """``[Phi(t), Gamma(t)]`` at ``t = k dt / samples``, k = 0..samples: the state's response to
+    the state and to inputs held since t = 0, shape (samples + 1, n, n + m).
+
+    The powers of one exact step of ``dt / samples`` (:func:`zero_order_hold`), so the sampled
+    trajectory is the one a plant stepping at that rate follows.
+    """
+    n, m = b.shape
+    phi, gamma = zero_order_hold(a, b, dt / samples)
+    step = np.zeros((n + m, n + m))
+    step[:n, :n], step[:n, n:] = phi, gamma
+    step[n:, n:] = np.eye(m)
+    power = np.eye(n + m)
+    out = np.empty((samples + 1, n, n + m))
+    for k in range(samples + 1):
+        out[k] = power[:n]
+        power = step @ power
+    return out
+
+
+def bow(rows: np.ndarray) -> np.ndarray:
+    """The largest distance of sampled coefficient rows from the chord between their first and
+    last samples, per coefficient: ``max_k |r_k - ((1 - k/K) r_0 + k/K r_K)|``.
+
+    ``rows`` has shape (K + 1, p): a linear reading of the state (a shaft's speed) as a
+    function of time over a step, one coefficient per entry of [x, u]. Then, for any x and u,
+    ``|reading(t_k) - chord(t_k)| <= sum_j bow_j |z_j|``: a reading whose values at both ends
+    exceed that sum, with one sign, keeps that sign at every sample in between.
+    """
+    rows = np.asarray(rows, dtype=float)
+    count = rows.shape[0] - 1
+    share = (np.arange(count + 1) / count)[:, None]
+    chord = (1.0 - share) * rows[0] + share * rows[-1]
+    return np.abs(rows - chord).max(axis=0)
+
+
+def sliding_step(phi: np.ndarray, gamma: np.ndarray, speeds: tuple[int, int],
+                 limits: tuple[float, float], ratio: float, bows: np.ndarray,
+                 stiffness: float, gear: float):
+    """``slide(x, torque) -> (x', f_motor, f_load)`` or None, for the two-mass model (state
+    [motor angle, motor speed, twist, load speed] and the current loop's torque when modelled;
+    inputs torque command, motor friction, load friction): one whole step with each Coulomb
+    friction at its full value against its shaft's motion, when no frictional shaft can stop
+    or reverse inside the step; None when one might (the caller sub-steps then).
+
+    While a shaft slides one way, its friction is a constant input, and the whole step is the
+    linear model's exact step with it held (sub-steps would give the same state). ``bows``
+    (shape (2, 7), :func:`bow` of each frictional shaft's speed over the step, in the
+    coordinates motor speed, relative speed ``ratio * motor speed - load speed``, twist, motor
+    torque (the current loop's state, 0 without), torque command, motor friction, load friction)
+    bound how far the speed can stray from the straight line between its two ends; the step is
+    taken when both ends lie beyond that bound, on the same side of zero. The relative speed
+    stands in for the load speed because the common motion of both shafts does not ring the
+    coupling mode: its bow is small, where the load speed's alone is not.
+
+    And while both shafts are at rest (held by stiction, each speed exactly 0) and each
+    friction can hold its shaft for the whole step, nothing moves but the current loop's
+    torque: the step is exact then too. The spring holds its twist (``stiffness`` k: the load
+    needs ``|k twist| < F_L``), and the motor needs ``|T_m(t) - gear k twist| < F_m`` with
+    ``gear`` g = r / eta, at both ends of the step, as the motor torque moves monotonically
+    between them (a first-order lag, or held without one).
+    """
+    phi = np.asarray(phi, dtype=float)
+    if phi.shape not in ((4, 4), (5, 5)):
+        raise InputError(f"phi shape {phi.shape} should be (4, 4) or (5, 5) (the two-mass model)")
+    gamma = np.asarray(gamma, dtype=float).reshape(phi.shape[0], 3)
+    bows = np.asarray(bows, dtype=float).reshape(2, 7)
+    values = [phi, gamma, bows, np.asarray(limits, dtype=float), np.asarray([ratio])]
+    if not all(np.all(np.isfinite(v)) for v in values):
+        raise InputError("sliding step matrices, bounds and limits should be finite")
+    n = phi.shape[0]
+    i_m, i_l = speeds
+    limit_m, limit_l = (float(v) for v in limits)
+    states = [f"x{i}" for i in range(n)]
+    lines = ["def slide(x, torque):",
+             f"    {', '.join(states)}{',' if n == 1 else ''} = x"]
+    if limit_m and limit_l:
+        spring = f"{float(stiffness)!r} * x2"
+        lines += [f"    if x{i_m} == 0.0 and x{i_l} == 0.0:",
+                  f"        spring = {spring}",
+                  f"        if not {-limit_l!r} < spring < {limit_l!r}:",
+                  "            return None",
+                  f"        reflected = {float(gear)!r} * spring"]
+        if n == 5:  # the current loop's torque over the step, exactly as the linear step has it
+            lag = " + ".join(t for t in (_term(float(phi[4, 4]), "x4"),
+                                         _term(float(gamma[4, 0]), "torque")) if t)
+            lines += [f"        applied = {lag or '0.0'}",
+                      "        start = x4 - reflected",
+                      "        end = applied - reflected",
+                      f"        if not ({-limit_m!r} < start < {limit_m!r} "
+                      f"and {-limit_m!r} < end < {limit_m!r}):",
+                      "            return None",
+                      "        return [x0, 0.0, x2, 0.0, applied], -end, -spring"]
+        else:
+            lines += ["        end = torque - reflected",
+                      f"        if not {-limit_m!r} < end < {limit_m!r}:",
+                      "            return None",
+                      "        return [x0, 0.0, x2, 0.0], -end, -spring"]
+    for shaft, index, limit in (("m", i_m, limit_m), ("l", i_l, limit_l)):
+        if limit:
+            lines += [f"    if x{index} > 0.0:", f"        f_{shaft} = {-limit!r}",
+                      f"    elif x{index} < 0.0:", f"        f_{shaft} = {limit!r}",
+                      "    else:", "        return None"]
+        else:
+            lines.append(f"    f_{shaft} = 0.0")
+    rows = []
+    for i in range(n):
+        terms = [_term(float(phi[i, k]), states[k]) for k in range(n)]
+        terms += [_term(float(gamma[i, j]), name)
+                  for j, name in enumerate(("torque", "f_m", "f_l"))]
+        terms = [t for t in terms if t is not None]
+        rows.append(" + ".join(terms).replace("+ -", "- ") if terms else "0.0")
+    lines.append(f"    out = [{', '.join(rows)}]")
+    magnitudes = [f"abs(x{i_m})", f"abs({ratio!r} * x{i_m} - x{i_l})", "abs(x2)",
+                  "abs(x4)" if n == 5 else "0.0", "abs(torque)"]
+    for shaft, index, limit, row in (("m", i_m, limit_m, bows[0]), ("l", i_l, limit_l, bows[1])):
+        if not limit:
+            continue
+        constant = float(row[5] * limit_m + row[6] * limit_l)
+        bound = " + ".join([repr(constant)] + [f"{float(c)!r} * {v}"
+                                                for c, v in zip(row[:5], magnitudes) if c])
+        lines += [f"    bound = {bound}",
+                  f"    end = out[{index}]",
+                  f"    if f_{shaft} < 0.0:",
+                  f"        if x{index} <= bound or end <= bound:",
+                  "            return None",
+                  f"    elif -x{index} <= bound or -end <= bound:",
+                  "        return None"]
+    lines.append("    return out, f_m, f_l")
+    source = "\n".join(lines) + "\n"
+    namespace: dict = {}
+    exec(compile(source, "<hil_sim.discretize.sliding_step>", "exec"), namespace)  # noqa: S102
+    slide = namespace["slide"]
+    slide.source = source
+    return slide

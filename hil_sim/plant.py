@@ -22,12 +22,13 @@ follows the command through a first-order lag, one more state).
 Stepping is exact for each linear piece (:mod:`hil_sim.discretize`): the mode (backlash gap or
 contact on either flank) is read from the twist at the start of a step, and that mode's
 zero-order-hold matrices advance the state with the torque command, the spring's flank offset
-and both friction torques held over the step. Coulomb friction is the torque in [-F, F] that
-the step needs: it stops a shaft exactly at zero speed within a step when it can (stiction),
-and opposes the motion at its full value when it cannot; with two frictional shafts both
-torques are found together (a projected Gauss-Seidel on the 2x2 system of end speeds, which is
-linear in them). A contact that begins inside a step is taken at the next step: the step should
-be short against the contact period (2 pi sqrt(J/k)), as the rig's controller period is.
+and both friction torques held over the step (a sub-step: see :class:`Plant`'s notes).
+Coulomb friction is the torque in [-F, F] that the step needs: it stops a shaft exactly at zero
+speed within a step when it can (stiction), and opposes the motion at its full value when it
+cannot; with two frictional shafts both torques are found together (a projected Gauss-Seidel on
+the 2x2 system of end speeds, which is linear in them). A contact that begins, or a shaft that
+stops, inside a step is taken at the next one: the step is cut into sub-steps short against the
+coupling mode's period (2 pi sqrt(J/k)).
 
 The two-mass state carries the twist instead of the load angle: that keeps the stiff terms away
 from the large, ever-growing angles, so no precision is lost to cancellation after many
@@ -44,7 +45,8 @@ import numpy as np
 from ecam import validate
 from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
-from hil_sim.discretize import expm, friction_step, linear_step, with_lag, zero_order_hold
+from hil_sim.discretize import (bow, expm, friction_step, hold_trajectory, linear_step,
+                                sliding_step, with_lag, zero_order_hold)
 
 __all__ = ["ARCMIN", "MODELS_RUN", "MechanicalEffects", "Plant", "RigidPlant", "TwoMassPlant",
            "FullPlant", "expm", "zero_order_hold", "choose_model", "significant_harmonic_hz"]
@@ -53,8 +55,13 @@ ARCMIN = math.pi / (180.0 * 60.0)  # rad
 #: The plant models a run can use.
 MODELS_RUN = ("rigid", "two_mass")
 _STICTION_ITERATIONS = 12
-#: Steps per period of the coupling's contact mode at least, while backlash is modelled.
+#: Steps per period of the coupling's contact mode at least, while backlash or Coulomb friction
+#: is modelled on the two-mass model.
 CONTACT_STEPS = 16
+#: Samples per sub-step of a shaft's speed when bounding its bow over a whole step.
+BOW_SAMPLES = 4
+#: Factor on the sampled bow, for the samples' spacing.
+BOW_MARGIN = 1.01
 
 
 @dataclass(frozen=True)
@@ -109,6 +116,8 @@ class _Mode:
     step_torque: object
     motor_column: list
     load_column: list
+    a: np.ndarray
+    b: np.ndarray
 
 
 class Plant:
@@ -126,17 +135,30 @@ class Plant:
     current_loop_hz : float, optional
         Bandwidth of the drive's current loop [Hz]: the motor torque follows the command
         through a first-order lag. None: the torque is the command.
+    substeps : int, optional
+        Sub-steps of every step, >= 1, while backlash or Coulomb friction is modelled on the
+        two-mass model, with no whole steps (the reference the plant's own rule is tested
+        against). None: the plant's rule (see the notes).
 
     Notes
     -----
     ``x`` is [motor angle, motor speed] (rigid) or [motor angle, motor speed, twist, load
     speed] (two-mass), rad and rad/s, followed by the motor torque [N m] when the current loop
     is modelled.
+
+    Backlash and Coulomb friction on the two-mass model are stepped in sub-steps of at most
+    1/:data:`CONTACT_STEPS` of the coupling mode's period: a contact begins, and a shaft
+    stops or reverses, inside a step of the controller (a 2.6 kHz mode turns round inside a
+    250 us step), and friction held for a whole step there is wrong by its full value for
+    part of it. With friction and no backlash, a step is taken whole where that is exact:
+    while both frictional shafts slide one way throughout the step (their frictions constant)
+    or both rest held by stiction throughout it (:func:`hil_sim.discretize.sliding_step`);
+    only the steps where a shaft may stop, start or turn are sub-stepped.
     """
 
     def __init__(self, mechanics: Mechanics, dt: float, model: str = "two_mass",
                  effects: MechanicalEffects | None = None,
-                 current_loop_hz: float | None = None) -> None:
+                 current_loop_hz: float | None = None, substeps: int | None = None) -> None:
         if not isinstance(mechanics, Mechanics):
             raise InputError(f"mechanics {mechanics!r} should be a Mechanics")
         self.dt = validate.positive("dt", dt)
@@ -163,10 +185,19 @@ class Plant:
         # Backlash: the teeth meet inside a step, and the contact is taken at a step's start,
         # so a step must be short against the contact's period or the impact is overshot:
         # at most 1/CONTACT_STEPS of it, by sub-steps with the torque held (still exact).
+        # Friction likewise: a shaft the mode turns round inside a step needs its friction
+        # turned with it (issue 20: held for a 250 us step against a 2.6 kHz mode, it put
+        # stiff_coupling's coupling peak 12.6 % high).
         self._inner = 1
-        if effects.gear_backlash and model == "two_mass":
+        if (effects.gear_backlash or effects.motor_coulomb_friction
+                or effects.load_coulomb_friction) and model == "two_mass":
             contact_hz = m.torsional_frequency_hz()
             self._inner = max(1, math.ceil(self.dt * contact_hz * CONTACT_STEPS))
+        if substeps is not None:
+            substeps = validate.integer("substeps", substeps, minimum=1)
+            if effects.gear_backlash or effects.motor_coulomb_friction or \
+                    effects.load_coulomb_friction:
+                self._inner = substeps
         self._step_dt = self.dt / self._inner
         if model == "rigid":
             self._jl = jl = m.load_inertia + jc
@@ -218,6 +249,9 @@ class Plant:
                     self._friction_steps[id(mode)] = friction_step(
                         mode.motor_column, mode.load_column, self._speeds,
                         self._friction_limits, _STICTION_ITERATIONS)
+        self._slide = (self._sliding_step() if self._frictional and model == "two_mass"
+                       and not self._half_gap and self._inner > 1 and substeps is None
+                       else None)
         self._x = [0.0] * phi.shape[0]
         self._torque = 0.0  # the last command
         self._friction = (0.0, 0.0)
@@ -233,7 +267,28 @@ class Plant:
         phi.setflags(write=False)
         gamma.setflags(write=False)
         return _Mode(phi, gamma, linear_step(phi, gamma), linear_step(phi, gamma[:, :1]),
-                     [float(v) for v in gamma[:, 1]], [float(v) for v in gamma[:, 2]])
+                     [float(v) for v in gamma[:, 1]], [float(v) for v in gamma[:, 2]], a, b)
+
+    def _sliding_step(self):
+        """The whole step where it is exact (:func:`sliding_step`): the contact mode over
+        ``dt``, and the bow of each shaft's speed over it, sampled at :data:`BOW_SAMPLES` per
+        sub-step, at least 64 per mode period (between samples the bow exceeds its sampled maximum by
+        at most about (pi / 64)^2 / 2 = 1.2e-3 of itself: :data:`BOW_MARGIN` covers it)."""
+        mode, r = self._contact, self._r
+        phi, gamma = zero_order_hold(mode.a, mode.b, self.dt)
+        trajectory = hold_trajectory(mode.a, mode.b, self.dt, BOW_SAMPLES * self._inner)
+        n = phi.shape[0]
+        bows = []
+        for index in self._speeds:
+            rows = trajectory[:, index, :]
+            # the coordinates of sliding_step: [motor speed, relative speed, twist, motor
+            # torque, torque command, motor friction, load friction] (x[3] = r x[1] - relative)
+            columns = [rows[:, 1] + r * rows[:, 3], -rows[:, 3], rows[:, 2],
+                       rows[:, 4] if n == 5 else 0.0 * rows[:, 0], rows[:, n], rows[:, n + 1],
+                       rows[:, n + 2]]
+            bows.append(BOW_MARGIN * bow(np.stack(columns, axis=1)))
+        return sliding_step(phi, gamma, self._speeds, self._friction_limits, r, np.array(bows),
+                            self._k, self._g)
 
     # -------------------------------------------------------------------- state
     def reset(self, motor_angle: float = 0.0, motor_speed: float = 0.0) -> None:
@@ -273,12 +328,17 @@ class Plant:
             self._x = x
             return
         if self._frictional:
-            mode = self._contact
-            free = mode.step(x, torque, 0.0, 0.0)
-        else:
-            self._x = self._contact.step_torque(x, torque)
+            slid = None if self._slide is None else self._slide(x, torque)
+            if slid is not None:
+                x, f_m, f_l = slid
+                self._friction = (f_m, f_l)
+            else:
+                mode = self._contact
+                for _ in range(self._inner):
+                    x = self._with_friction(mode.step(x, torque, 0.0, 0.0), mode)
+            self._x = x
             return
-        self._x = self._with_friction(free, mode)
+        self._x = self._contact.step_torque(x, torque)
 
     def _advance_function(self):
         """``advance(torque) -> (motor angle, motor speed, coupling torque, wind-up)``: one
@@ -293,10 +353,18 @@ class Plant:
             k, c, r = self._k, self._c, self._r
             step3 = self._contact.step
             correct = self._friction_steps[id(self._contact)]
+            inner = range(self._inner)
+            slide = self._slide or (lambda x, torque: None)
 
             def advance(torque):
                 torque = float(torque)
-                x, f_m, f_l = correct(step3(plant._x, torque, 0.0, 0.0))
+                x = plant._x
+                slid = slide(x, torque)
+                if slid is not None:
+                    x, f_m, f_l = slid
+                else:
+                    for _ in inner:
+                        x, f_m, f_l = correct(step3(x, torque, 0.0, 0.0))
                 plant._x = x
                 plant._torque = torque
                 plant._friction = (f_m, f_l)

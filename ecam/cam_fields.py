@@ -1,0 +1,115 @@
+"""Every field of a cam file (TOML), as :func:`ecam.camfile.parse_cam` reads it: the table the
+reference page is generated from (see :mod:`ecam.field_table`; ``tests/test_field_tables.py``
+holds it to the parser)."""
+
+from __future__ import annotations
+
+from .field_table import REQUIRED, Field
+from .laws import LAW_NAMES
+from .profile import MAX_PERIOD, MAX_SEGMENTS, MAX_SLAVE, MIN_PERIOD
+from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
+from .table_spec import (DEFAULT_COUNTS_PER_UNIT, DEFAULT_INTERP, DEFAULT_MASTER_COUNTS, MAX_COUNTS_PER_UNIT,
+                         MAX_POINTS, MIN_COUNTS_PER_UNIT)
+from .validate import MAX_MAGNITUDE
+
+__all__ = ["CAM_FIELDS", "CAM_TABLES"]
+
+_PARSER = "ecam.camfile"
+_SPEC = "ecam.table_spec (TableSpec)"
+_FILE_LAWS = (*LAW_NAMES, "poly5", "poly7")
+
+#: The tables of a cam file and what each holds, in the reference's order.
+CAM_TABLES = {
+    "": "The cam: its units, its master period and where the slave starts.",
+    "table": "Defaults for `ecam compile` and `ecam export` (the command line's options win). "
+             "Every field is optional; a cam without `[table]` compiles with the defaults below, "
+             "and `ecam compile` says which it applied.",
+    "segment": "One `[[segment]]` per piece of the motion, in master order; the segments cover the "
+               "master period without gaps.",
+}
+
+_BOUNDARY = []
+for _end in ("start", "end"):
+    for _order, (_what, _unit) in enumerate((("velocity", "slave units / master unit"),
+                                             ("acceleration", "slave units / master unit^2"),
+                                             ("jerk", "slave units / master unit^3")), start=1):
+        _BOUNDARY.append(Field(
+            "segment", f"{_end}_{_what}", "number or \"match\"",
+            f"poly5/poly7 only: the {_what} at the segment's {_end}; \"match\" takes the neighbouring "
+            "segment's (VDI 2143 motion-to-motion)" + (" (poly7 only)" if _what == "jerk" else ""),
+            unit=_unit, default=0.0, source=_PARSER,
+            limits=f"finite, magnitude <= {MAX_MAGNITUDE:g}, also once normalized (value x span^{_order} / stroke)",
+            when=(("segment.law", "poly7"),), probe=False))
+
+CAM_FIELDS: tuple[Field, ...] = (
+    Field("", "name", "string", "The cam's name: tables, exports and reports carry it.",
+          default_text="the file name without .toml", source=_PARSER),
+    Field("", "master_unit", "string", "The master's unit, for reports and plots (free text).",
+          default="deg", source=_PARSER),
+    Field("", "slave_unit", "string", "The slave's unit, for reports, plots and tolerances such as "
+          "\"0.01 mm\" (free text).", default="mm", source=_PARSER),
+    Field("", "master_period", "number", "Master units per cycle of the cam.", unit="master units",
+          default=REQUIRED, minimum=MIN_PERIOD, maximum=MAX_PERIOD, source="ecam.profile"),
+    Field("", "periodic", "boolean", "The cam repeats: master positions wrap, and the seam is "
+          "checked like a joint.", default=True, source=_PARSER),
+    Field("", "start", "number", "The slave position at master 0.", unit="slave units", default=0.0,
+          minimum=-MAX_SLAVE, maximum=MAX_SLAVE, source=_PARSER),
+    Field("", "net_stroke", "number", "Slave units the slave advances per master period (a rotary "
+          "knife, an indexing turret, a feed roll); it must equal the segments' total stroke.",
+          unit="slave units", default_text="none (the slave returns to its start each period)",
+          minimum=-2 * MAX_SLAVE, maximum=2 * MAX_SLAVE, limits="periodic cams only", probe=False,
+          source="ecam.profile"),
+    Field("", "table", "table", "The `[table]` settings below.", default_text="the defaults below"),
+    Field("", "segment", "array of tables", "The `[[segment]]` entries below.", default=REQUIRED,
+          limits=f"1 .. {MAX_SEGMENTS} segments"),
+
+    Field("table", "interp", "choice", "The interpolation kind: positions only (linear), position "
+          "and slope (cubic Hermite, C1), position, slope and curvature (quintic Hermite, C2), or the "
+          "kind and point count that meet the tolerance with the fewest bytes (auto).",
+          default=DEFAULT_INTERP, choices=INTERPOLATIONS, source=_SPEC),
+    Field("table", "points", "integer", "Stored points (intervals + 1).",
+          default_text="from the tolerance; with neither, the smallest table within 1/2 count",
+          minimum=2, maximum=MAX_POINTS, limits="points - 1 divides master_counts; at most one of "
+          "points and tolerance", source=_SPEC),
+    Field("table", "tolerance", "number or string", "The largest error the table may have: slave "
+          "units, or a string such as \"2 counts\" or \"0.01 mm\".", unit="slave units or counts",
+          default_text="none", limits=f"> 0 and <= {MAX_MAGNITUDE:g}; at least the 1/2-count final "
+          "rounding", source=_SPEC),
+    Field("table", "master_counts", "integer", "The master period in encoder counts.",
+          unit="counts", default=DEFAULT_MASTER_COUNTS, minimum=2, maximum=MAX_MASTER_COUNTS,
+          source=_SPEC),
+    Field("table", "slave_counts_per_unit", "number", "Slave counts per slave unit.",
+          unit="counts / slave unit", default=DEFAULT_COUNTS_PER_UNIT, minimum=MIN_COUNTS_PER_UNIT,
+          maximum=MAX_COUNTS_PER_UNIT, limits="every table position inside int32", source=_SPEC),
+
+    Field("segment", "name", "string", "A name for reports and plots.", default="", source=_PARSER),
+    Field("segment", "law", "choice", "The motion law (`ecam laws`), a dwell, or a polynomial solved "
+          "from boundary conditions (poly5, poly7).", default_text="give exactly one of law and "
+          "combination", choices=_FILE_LAWS, source=_PARSER),
+    Field("segment", "combination", "array", "Two half laws joined with matched velocity "
+          "(ecam.design), e.g. [\"half_cycloid_start\", \"half_harmonic_end\"].",
+          default_text="give exactly one of law and combination", limits="two law names",
+          source=_PARSER),
+    Field("segment", "accel_ratio", "number", "Combination only: peak |acceleration| of the first "
+          "law over that of the second.", default=REQUIRED, minimum=1e-6, maximum=1e6,
+          when=(("segment.law", None), ("segment.combination", ["half_cycloid_start", "half_harmonic_end"])),
+          source="ecam.design"),
+    Field("segment", "span", "number", "The segment's length in master units.", unit="master units",
+          default_text="give exactly one of span and end", minimum=0.0, exclusive_minimum=True,
+          limits="at least 1e-9 of master_period", source="ecam.profile", probe=False),
+    Field("segment", "end", "number", "The master position where the segment ends (absolute).",
+          unit="master units", default_text="give exactly one of span and end", source=_PARSER,
+          probe=False),
+    Field("segment", "start", "number", "The master position where the segment starts; must equal "
+          "the previous segment's end (anything else is a gap or an overlap).", unit="master units",
+          default_text="the previous segment's end", source=_PARSER, probe=False),
+    Field("segment", "stroke", "number", "The slave's travel over the segment.", unit="slave units",
+          default_text="0 for a dwell; else give stroke or to", source=_PARSER, probe=False),
+    Field("segment", "to", "number", "The slave position at the segment's end (absolute).",
+          unit="slave units", default_text="the start plus the stroke", minimum=-MAX_SLAVE,
+          maximum=MAX_SLAVE, source=_PARSER, probe=False),
+    Field("segment", "from", "number", "An explicit slave start: a deliberate position jump, which "
+          "`ecam check` reports.", unit="slave units", default_text="the previous segment's end",
+          minimum=-MAX_SLAVE, maximum=MAX_SLAVE, source=_PARSER, probe=False),
+    *_BOUNDARY,
+)

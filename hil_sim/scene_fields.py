@@ -1,0 +1,292 @@
+"""Every field of a scene file (TOML), as :func:`hil_sim.scene.parse_scene` reads it: the table the
+reference page is generated from (see :mod:`ecam.field_table`; ``tests/test_field_tables.py``
+holds it to the parser: a field the parser accepts without a row here fails that test, and so
+does a row whose limits the parser does not enforce).
+
+To add a field: add its row here, in its table's place, with the unit, the default and where
+that default comes from.
+"""
+
+from __future__ import annotations
+
+from ecam.field_table import REQUIRED, Field
+from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
+from ecam.table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT
+from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
+from hil_sim.effects import (DEFAULT_BACKLASH_ARCMIN, DEFAULT_CURRENT_LOOP_HZ, DEFAULT_ENCODER_COUNTS,
+                             DEFAULT_LOAD_FRICTION_SHARE, DEFAULT_MOTOR_FRICTION_SHARE, FIDELITIES,
+                             VELOCITY_FILTER_SHARE)
+from hil_sim.faults import FRAME_KINDS, MAX_SYNC_JITTER_S
+from hil_sim.scene import (CAM_MODES, EFFECT_RANGES, MAX_BANDWIDTH_HZ, MAX_CYCLES, MAX_LEAD_CYCLES,
+                           MAX_MASTER_SPEED, MAX_SETTLE_S, MECHANICS_MINIMA, MECHANICS_RANGES, MIN_LOAD_INERTIA,
+                           MIN_MASTER_SPEED, PROFILES, SLAVE_UNITS_PER_RADIAN_RANGE)
+
+__all__ = ["SCENE_FIELDS", "SCENE_TABLES"]
+
+_PARSER = "hil_sim.scene"
+_EFFECTS = "hil_sim.effects (the catalogue sources are cited there)"
+_START_STOP = (("master.profile", "start_stop"), ("master.max_acceleration", 1000.0),
+               ("master.max_jerk", 1e5))
+_CAM_IN = (("master.profile", "cam_in"), ("master.engage_at", 0.0), ("master.max_velocity", 1.0),
+           ("master.slave_max_acceleration", 10.0), ("master.slave_max_jerk", 1000.0))
+_NOT_SPEED = (("master.speed", None),)
+
+#: The tables of a scene file and what each holds, in the reference's order.
+SCENE_TABLES = {
+    "": "The scene: its name, where the cam runs and how much the rig models.",
+    "master": "How the master axis moves.",
+    "cam": "The cam file and the table the rig compiles from it (the cam file's own `[table]` "
+           "fills in what is not given).",
+    "drive": "The virtual CiA 402 drive: node, cycle, control loop and the drive's effects.",
+    "drive.gains": "The cascade's gains: bandwidths (the gains are computed from the mechanics) "
+                   "and/or raw gains, which win.",
+    "mechanics": "Motor, gear, coupling and load (ecam.Mechanics), SI units, and the mechanical "
+                 "effects.",
+    "bus": "The CAN bus.",
+    "bus.faults": "Faults injected on the bus, from a seeded generator (hil_sim.faults.Faults).",
+    "limits": "The limits of the report's checks.",
+    "duration": "How long to run: exactly one of these.",
+}
+
+_MECHANICS_TEXT = {
+    "motor_inertia": ("Rotor inertia plus everything turning at motor speed.", "kg m^2", REQUIRED, ""),
+    "gear_ratio": ("r = load speed / motor speed; 0.1 is a 10:1 reduction.", "", 1.0, ""),
+    "gear_efficiency": ("The gear's efficiency eta.", "", 1.0, ""),
+    "motor_damping": ("Viscous damping on the motor side.", "N m s/rad", 0.0, ""),
+    "load_damping": ("Viscous damping on the load side.", "N m s/rad", 0.0, ""),
+    "coupling_stiffness": ("Torsional stiffness of the coupling between gear output and load; "
+                           "absent: a rigid connection.", "N m/rad", None, "rigid"),
+    "coupling_damping": ("Viscous damping across the coupling.", "N m s/rad", 0.0, ""),
+    "load_inertia": ("Load inertia on the output side.", "kg m^2", 0.0, ""),
+    "coupling_rated_torque": ("The coupling's rated (continuous) torque.", "N m", None, "unrated"),
+    "coupling_max_torque": ("The coupling's maximum (peak) torque.", "N m", None, "unrated"),
+    "motor_torque_limit": ("The peak torque the drive may command.", "N m", None, "no limit"),
+}
+_POSITIVE = {"coupling_stiffness", "coupling_rated_torque", "coupling_max_torque", "motor_torque_limit"}
+_MECHANICS_LIMITS = {
+    "load_inertia": f"0 or >= {MIN_LOAD_INERTIA:g}; > 0 when coupling_stiffness is given",
+    "coupling_max_torque": ">= coupling_rated_torque",
+    "gear_efficiency": "",
+}
+
+
+def _mechanics() -> list[Field]:
+    rows = []
+    for key, (text, unit, default, default_text) in _MECHANICS_TEXT.items():
+        minimum = MECHANICS_MINIMA.get(key, 0.0)
+        rows.append(Field("mechanics", key, "number", text, unit=unit, default=default,
+                          default_text=default_text, source="ecam.mechanics (Mechanics)",
+                          minimum=minimum, maximum=MECHANICS_RANGES[key],
+                          exclusive_minimum=key in _POSITIVE and key not in MECHANICS_MINIMA, limits=_MECHANICS_LIMITS.get(key, "")))
+    return rows
+
+
+SCENE_FIELDS: tuple[Field, ...] = (
+    Field("", "name", "string", "The scene's name in reports.", default_text="the file name without "
+          ".toml", source=_PARSER),
+    Field("", "description", "string", "Free text, shown in the HTML report.", default="",
+          source=_PARSER),
+    Field("", "cam_mode", "choice", "Where the cam runs: the controller streams cyclic synchronous "
+          "position targets, or the drive runs the downloaded table from the streamed master position.",
+          default="controller", choices=CAM_MODES, source=_PARSER),
+    Field("", "fidelity", "choice", "Which effects a run models: measured (auto), every one (full), "
+          "none (ideal); `ecam sim --fidelity` overrides it.", default="auto", choices=FIDELITIES,
+          source="hil_sim.effects"),
+    Field("", "master", "table", "The `[master]` table.", default=REQUIRED),
+    Field("", "cam", "table", "The `[cam]` table.", default=REQUIRED,
+          default_text="optional with load_scene(path, cam=profile)"),
+    Field("", "drive", "table", "The `[drive]` table.", default_text="the defaults below"),
+    Field("", "mechanics", "table", "The `[mechanics]` table.", default=REQUIRED),
+    Field("", "bus", "table", "The `[bus]` table.", default_text="the defaults below"),
+    Field("", "limits", "table", "The `[limits]` table.", default=REQUIRED),
+    Field("", "duration", "table", "The `[duration]` table.", default=REQUIRED),
+
+    Field("master", "speed", "number", "The cruise speed.", unit="master units/s",
+          default_text="give exactly one of speed and speed_rpm", minimum=-MAX_MASTER_SPEED,
+          maximum=MAX_MASTER_SPEED, limits=f"magnitude >= {MIN_MASTER_SPEED:g}; at most half a cam "
+          "period per bus cycle", source=_PARSER),
+    Field("master", "speed_rpm", "number", "The cruise speed in master periods (cam cycles) per "
+          "minute.", unit="periods/min", default_text="give exactly one of speed and speed_rpm",
+          minimum=-MAX_MASTER_SPEED, maximum=MAX_MASTER_SPEED,
+          limits=f"magnitude >= {MIN_MASTER_SPEED:g}", when=_NOT_SPEED, source=_PARSER),
+    Field("master", "profile", "choice", "Constant speed from the first cycle, a jerk-limited start "
+          "(and stop) planned by ruckig, or a cam-in: the slave engaged onto the moving master.",
+          default="constant", choices=PROFILES, source=_PARSER),
+    Field("master", "lead_cycles", "integer", "Set points sent this many cycles ahead (1: the CSP "
+          "timeline of a real drive; 0: a master that sends the position of now, so the drive lags a "
+          "cycle).", unit="cycles", default=1, minimum=0, maximum=MAX_LEAD_CYCLES, source=_PARSER),
+    Field("master", "max_acceleration", "number", "start_stop: the master's acceleration limit.",
+          unit="master units/s^2", default=REQUIRED, minimum=0.0, exclusive_minimum=True,
+          when=_START_STOP, source=_PARSER),
+    Field("master", "max_jerk", "number", "start_stop: the master's jerk limit.",
+          unit="master units/s^3", default=REQUIRED, minimum=0.0, exclusive_minimum=True,
+          when=_START_STOP, source=_PARSER),
+    Field("master", "start_s", "number", "start_stop: when the master starts.", unit="s", default=0.0,
+          minimum=0.0, when=_START_STOP, source=_PARSER),
+    Field("master", "stop_s", "number", "start_stop: when the master starts to stop.", unit="s",
+          default_text="no stop", minimum=0.0, limits=">= start_s", when=_START_STOP, source=_PARSER),
+    Field("master", "engage_at", "number", "cam_in: the master position where the slave is on the cam.",
+          unit="master units", default=REQUIRED, when=_CAM_IN, source=_PARSER),
+    Field("master", "slave_start", "number", "cam_in: where the slave rests before the cam-in.",
+          unit="slave units", default=0.0, when=_CAM_IN, source=_PARSER),
+    Field("master", "max_velocity", "number", "cam_in: the slave's speed limit during the approach.",
+          unit="slave units/s", default=REQUIRED, minimum=0.0, exclusive_minimum=True, when=_CAM_IN,
+          source=_PARSER),
+    Field("master", "slave_max_acceleration", "number", "cam_in: the slave's acceleration limit.",
+          unit="slave units/s^2", default=REQUIRED, minimum=0.0, exclusive_minimum=True, when=_CAM_IN,
+          source=_PARSER),
+    Field("master", "slave_max_jerk", "number", "cam_in: the slave's jerk limit.",
+          unit="slave units/s^3", default=REQUIRED, minimum=0.0, exclusive_minimum=True, when=_CAM_IN,
+          source=_PARSER),
+
+    Field("cam", "file", "string", "The cam file, relative to the scene file; a name of a built-in "
+          "cam (ecam/cams/) is found when no such file exists.", default=REQUIRED, source=_PARSER),
+    Field("cam", "interp", "choice", "The table's interpolation kind.", default_text="the cam "
+          "file's [table]", choices=INTERPOLATIONS, source="ecam.table_spec"),
+    Field("cam", "points", "integer", "Stored points of the table.", default_text="the cam file's "
+          "[table]", minimum=2, limits=f"<= {MAX_POINTS} when compiled; points - 1 divides "
+          "master_counts; at most one of points and tolerance", source="ecam.table_spec"),
+    Field("cam", "tolerance", "number or string", "The table's largest error: slave units, or "
+          "\"2 counts\", \"0.01 deg\".", unit="slave units or counts",
+          default_text="the cam file's [table]", limits="> 0", source="ecam.table_spec"),
+    Field("cam", "master_counts", "integer", "The master period in counts.", unit="counts",
+          default_text="the cam file's [table], else 65536", minimum=2, maximum=MAX_MASTER_COUNTS,
+          source="ecam.table_spec"),
+    Field("cam", "slave_counts_per_unit", "number", "Slave counts per slave unit: what a rig "
+          "\"count\" is (a table slave count, not an encoder increment).", unit="counts / slave unit",
+          default_text="the cam file's [table], else 1000", minimum=MIN_COUNTS_PER_UNIT,
+          maximum=MAX_COUNTS_PER_UNIT, source="ecam.table_spec"),
+
+    Field("drive", "node_id", "integer", "The drive's CANopen node id.", default=1, minimum=1,
+          maximum=127, source="CiA 301 (node ids 1..127)"),
+    Field("drive", "cycle_s", "number", "The interpolation period (0x60C2) = the bus cycle.",
+          unit="s", default=0.001, minimum=1e-5, maximum=0.255,
+          limits="n x 10^e s with n in 1..255 (the 0x60C2 format)", source=_PARSER),
+    Field("drive", "substeps", "integer", "Controller periods per bus cycle.", default=4, minimum=1,
+          maximum=1000, source=_PARSER),
+    Field("drive", "following_error_window", "integer", "The following error window (0x6065): "
+          "beyond it the drive faults.", unit="counts", default=100000, minimum=1,
+          maximum=0xFFFFFFFF, source=_PARSER),
+    Field("drive", "model", "choice", "The plant model: measured (auto), rigid or two-mass.",
+          default="auto", choices=MODELS, source="hil_sim.control"),
+    Field("drive", "feedforward", "choice", "Where the velocity feed-forward comes from: the velocity "
+          "offset 0x60B1 streamed with the targets, or differences of the targets.",
+          default="offset", choices=FEEDFORWARD_SOURCES, source="hil_sim.control"),
+    Field("drive", "gains", "table", "The `[drive.gains]` table.", default_text="computed from "
+          "the mechanics"),
+    Field("drive", "encoder_counts_per_rev", "integer", "The motor encoder's resolution; 0 = ideal "
+          "feedback.", unit="counts/rev", default=DEFAULT_ENCODER_COUNTS, minimum=0, maximum=2**40,
+          limits="0 or >= 4", source=_EFFECTS),
+    Field("drive", "velocity_filter_hz", "number", "The speed estimate's low-pass.", unit="Hz",
+          default_text=f"{VELOCITY_FILTER_SHARE:g} x the controller rate", minimum=0.0,
+          exclusive_minimum=True, maximum=MAX_BANDWIDTH_HZ, source=_EFFECTS),
+    Field("drive", "current_loop_bandwidth_hz", "number", "The torque loop's bandwidth; 0 = ideal "
+          "torque.", unit="Hz", default=DEFAULT_CURRENT_LOOP_HZ, minimum=0.0, maximum=MAX_BANDWIDTH_HZ,
+          source=_EFFECTS),
+    Field("drive", "computation_delay", "boolean", "One controller period between sampling and "
+          "the applied torque.", default=True, source=_EFFECTS),
+
+    *(Field("drive.gains", key, "number", text, unit=unit, default=default, default_text=default_text,
+            minimum=0.0, limits=limits, source=source)
+      for key, text, unit, default, default_text, limits, source in (
+          ("velocity_bandwidth_hz", "The velocity loop's bandwidth.", "Hz", 200.0, "", "> 0 at run time",
+           "hil_sim.control (Gains.from_mechanics)"),
+          ("position_bandwidth_hz", "The position loop's bandwidth.", "Hz", 30.0, "", "> 0 at run time",
+           "hil_sim.control (Gains.from_mechanics)"),
+          ("integral_ratio", "The velocity integrator's corner over the velocity bandwidth.", "", 0.25,
+           "", "", "hil_sim.control (Gains.from_mechanics)"),
+          ("position_kp", "Position loop gain (rad/s per rad).", "1/s", None, "from the bandwidths",
+           "> 0 at run time", "hil_sim.control"),
+          ("velocity_kp", "Velocity loop proportional gain.", "N m s/rad", None, "from the bandwidths",
+           "> 0 at run time", "hil_sim.control"),
+          ("velocity_ki", "Velocity loop integral gain.", "N m/rad", None, "from the bandwidths", "",
+           "hil_sim.control"),
+          ("velocity_feedforward", "Share of the target's speed fed forward.", "", 1.0, "", "",
+           "hil_sim.control (Gains)"),
+          ("acceleration_feedforward", "Share of the model torque fed forward.", "", 1.0, "", "",
+           "hil_sim.control (Gains)"),
+          ("notch_hz", "Centre of the notch on the torque command; 0: none.", "Hz", None,
+           "the coupling's torsional frequency (two-mass), as a drive's one-button tuning does",
+           "below the controller's Nyquist frequency", "hil_sim.rig.run"),
+          ("notch_width", "The notch's width (its poles' damping ratio).", "", 0.5, "", "> 0 at run time",
+           "hil_sim.control (Gains)"),
+          ("notch_depth_db", "The notch's depth.", "dB", 30.0, "", "> 0 at run time",
+           "hil_sim.control (Gains)"),
+      )),
+
+    *_mechanics(),
+    Field("mechanics", "slave_units_per_load_radian", "number", "Slave user units per radian of the "
+          "load shaft (1 for a slave in rad; 57.3 for deg; the lead / 2 pi of a ballscrew).",
+          unit="slave units/rad", default=1.0, minimum=SLAVE_UNITS_PER_RADIAN_RANGE[0],
+          maximum=SLAVE_UNITS_PER_RADIAN_RANGE[1], source=_PARSER),
+    Field("mechanics", "gear_backlash", "number", "Backlash at the load shaft; 0: none.", unit="rad",
+          default_text=f"{DEFAULT_BACKLASH_ARCMIN:g} arcmin with a gear (a standard-class precision "
+          "planetary gearhead), none at ratio 1", minimum=0.0, maximum=EFFECT_RANGES["gear_backlash"],
+          source=_EFFECTS),
+    Field("mechanics", "motor_coulomb_friction", "number", "Coulomb friction on the motor side; 0: "
+          "none.", unit="N m", default_text=f"{DEFAULT_MOTOR_FRICTION_SHARE:.0%} of the motor torque "
+          "limit", minimum=0.0, maximum=EFFECT_RANGES["motor_coulomb_friction"], source=_EFFECTS),
+    Field("mechanics", "load_coulomb_friction", "number", "Coulomb friction on the load side; 0: "
+          "none.", unit="N m", default_text=f"{DEFAULT_LOAD_FRICTION_SHARE:.0%} of the torque the "
+          "motor can put on the load shaft", minimum=0.0,
+          maximum=EFFECT_RANGES["load_coulomb_friction"], source=_EFFECTS),
+    Field("mechanics", "coupling_inertia", "number", "The coupling's own inertia, half to each side; "
+          "0: none.", unit="kg m^2", default_text="J = 5.4e-7 T_KN^1.48 for a metal bellows of the "
+          "rated torque T_KN (RINGFEDER GWB tables)", minimum=0.0,
+          maximum=EFFECT_RANGES["coupling_inertia"], source=_EFFECTS),
+
+    Field("bus", "bitrate", "integer", "The CAN bitrate: the rig adds up each cycle's frame bits "
+          "(worst-case bit stuffing) against it.", unit="bit/s", default=1_000_000, minimum=10_000,
+          maximum=1_000_000, source="CiA 301 bit rates (10 kbit/s .. 1 Mbit/s)"),
+    Field("bus", "faults", "table", "The `[bus.faults]` table.", default_text="no faults"),
+    Field("bus.faults", "seed", "integer", "Seed of the fault generator: same seed, same faults.",
+          default=0, minimum=0, source="hil_sim.faults"),
+    Field("bus.faults", "kinds", "array", "The frame kinds random drops and delays apply to.",
+          default_text='["rpdo", "tpdo"]', limits="each one of " + ", ".join(f'"{k}"' for k in FRAME_KINDS),
+          source="hil_sim.faults"),
+    Field("bus.faults", "drop_probability", "number", "Probability that a frame of those kinds is "
+          "lost.", default=0.0, minimum=0.0, maximum=1.0, source="hil_sim.faults"),
+    Field("bus.faults", "drop", "array", "Frames always lost: [{cycle = N, frame = KIND}, ...].",
+          default_text="none", source="hil_sim.faults"),
+    Field("bus.faults", "delay_probability", "number", "Probability that a frame of those kinds "
+          "(SYNC excepted) arrives whole cycles late.", default=0.0, minimum=0.0, maximum=1.0,
+          source="hil_sim.faults"),
+    Field("bus.faults", "delay_cycles", "integer", "A delayed frame arrives 1..delay_cycles cycles "
+          "late.", unit="cycles", default=1, minimum=1, source="hil_sim.faults"),
+    Field("bus.faults", "sync_jitter_s", "number", "The SYNC instants move by a uniform draw in "
+          "[-jitter, +jitter].", unit="s", default=0.0, minimum=0.0, maximum=MAX_SYNC_JITTER_S,
+          source="hil_sim.faults"),
+
+    Field("limits", "tracking_error", "number", "Load-side tracking error against the cam.",
+          unit="slave units", default=REQUIRED, minimum=0.0, exclusive_minimum=True, source=_PARSER),
+    Field("limits", "following_error", "integer", "Motor-side following error.", unit="counts",
+          default_text="the drive's following_error_window", minimum=1, source=_PARSER),
+    Field("limits", "bus_load_percent", "number", "The bus load.", unit="%", default=100.0,
+          minimum=0.0, exclusive_minimum=True, source=_PARSER),
+    Field("limits", "wind_up_deg", "number", "The coupling's twist.", unit="deg",
+          default_text="reported without a limit", minimum=0.0, exclusive_minimum=True, source=_PARSER),
+    Field("limits", "resonance_excitation_percent", "number", "The share of the strongest "
+          "acceleration harmonic that the harmonic at the torsional mode carries.", unit="%",
+          default=5.0, minimum=0.0, source=_PARSER),
+    Field("limits", "motor_saturation_percent", "number", "The share of cycles with the torque "
+          "clamped at the motor torque limit.", unit="%", default=0.0, minimum=0.0, maximum=100.0,
+          source=_PARSER),
+    Field("limits", "tracking_window", "array", "[start, end]: the master positions where the "
+          "tracking check applies (the cut zone of a knife); end < start spans the seam.",
+          unit="master units", default_text="the whole period", limits="two numbers, start != end, "
+          "each within +-1e12", source=_PARSER),
+    Field("limits", "settle_s", "number", "Left out of the tracking and following-error checks at "
+          "the start.", unit="s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S, source=_PARSER),
+
+    Field("duration", "master_periods", "number", "Cam periods at the cruise speed (a start ramp "
+          "or a cam-in takes part of them: the report says how many ran at cruise speed).",
+          unit="periods", default_text="give exactly one", minimum=0.0, exclusive_minimum=True,
+          limits=f"at most {MAX_CYCLES} cycles", source=_PARSER),
+    Field("duration", "cycles", "integer", "Bus cycles.", unit="cycles",
+          default_text="give exactly one", minimum=1, maximum=MAX_CYCLES,
+          when=(("duration.master_periods", None),), source=_PARSER),
+    Field("duration", "seconds", "number", "Seconds of simulated time.", unit="s",
+          default_text="give exactly one", minimum=0.0, exclusive_minimum=True,
+          limits=f"at most {MAX_CYCLES} cycles at drive.cycle_s", when=(("duration.master_periods", None),),
+          source=_PARSER),
+)

@@ -1,21 +1,28 @@
-"""The README's Python example runs as written."""
+"""The README's commands and the documentation's Python API example run as written."""
 
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+# The Python API example moved from the README to the documentation's Python API page.
+PYTHON_API = ROOT / "docs" / "reference" / "python.md"
 
 
 def python_api_example() -> str:
-    section = README.read_text().split("## Python API", 1)[1]
+    section = PYTHON_API.read_text().split("## A complete example", 1)[1]
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 
 @pytest.mark.slow
 def test_the_python_api_example_runs(capsys):
-    exec(compile(python_api_example(), "README.md: Python API", "exec"), {})
+    exec(compile(python_api_example(), "docs/reference/python.md: Python API", "exec"), {})
     out = capsys.readouterr().out.strip().splitlines()
     # The shipped stiff scene passes with the README's cam, and the search finds a speed.
     assert out[0].startswith("scene stiff_coupling: PASSED after ")
@@ -59,3 +66,44 @@ def test_the_methods_the_example_calls_have_docstrings():
     for owner, name in methods:
         assert f".{name}" in example, f"{name} is no longer in the example: update this list"
         assert getattr(owner, name).__doc__, f"{owner.__name__}.{name} has no docstring"
+
+
+def test_ci_runs_the_readme_test_command():
+    """.ci/run takes the second non-empty line of the README's first code block."""
+    script = (ROOT / ".ci" / "run").read_text()
+    awk = re.search(r"awk '([^']+)' README.md", script).group(1)
+    line = subprocess.run(["awk", awk, str(README)], capture_output=True, text=True,
+                          check=True).stdout.strip()
+    assert line == "python3 -m pip install -e '.[test]' && python3 -m pytest -q"
+    first = README.read_text().split("```bash\n", 1)[1].splitlines()[0]
+    assert first == "python3 -m pip install . && ecam demo"
+
+
+def walkthrough_commands() -> list[str]:
+    section = README.read_text().split("## Five minutes", 1)[1]
+    block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
+    lines = [line.split("  #", 1)[0].strip() for line in block.splitlines()]
+    return [line for line in lines if line and not line.startswith("cd ")]
+
+
+@pytest.mark.slow
+def test_the_readme_walkthrough_runs(tmp_path):
+    """Every command of the five-minute walkthrough, in a copy of examples/project."""
+    project = tmp_path / "project"
+    shutil.copytree(ROOT / "examples" / "project", project)
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    commands = walkthrough_commands()
+    assert [c.split()[:2] for c in commands][:4] == [["ecam", "check"], ["ecam", "compile"],
+                                                      ["ecam", "export"], ["ecam", "sim"]]
+    for command in commands:
+        words = command.split()
+        if words[0] == "ecam":
+            words = [sys.executable, "-m", "ecam.app", *words[1:]]
+        elif words[0] == "python3":
+            words = [sys.executable, *words[1:], "-q", "-p", "no:cacheprovider"]
+        done = subprocess.run(words, cwd=project, env=environment, capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 0, f"{command}: {done.stdout[-2000:]}{done.stderr[-2000:]}"
+        if words[-1] == "scenes/lift.toml":
+            assert "scene lift: PASSED" in done.stdout
+    assert (project / "lift.st").is_file() and (project / "tables" / "lift.h").is_file()

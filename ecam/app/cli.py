@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ecam import __version__
 from ecam.errors import EcamError, InputError
 from ecam.table import INTERPOLATIONS
 from hil_sim.effects import FIDELITIES
@@ -21,9 +22,21 @@ from .drive_command import INTERFACES
 EXIT_BAD_INPUT = 2
 
 
+class UsageError(InputError):
+    """A command line argparse refused; ``usage`` is the parser's usage line."""
+
+    def __init__(self, message: str, usage: str) -> None:
+        super().__init__(message)
+        self.usage = usage
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, status 2, as for every other bad input
-        raise InputError(f"{self.prog}: {message}")
+        # `ecam check: ...` reads `check: ...` after main's `ecam: error:` prefix.
+        command = self.prog.partition(" ")[2]
+        where = f"{command}: " if command else ""
+        raise UsageError(f"{where}{message} (`{self.prog} --help` lists the options)",
+                         self.format_usage().strip())
 
 
 # The rig and the bench load the CAN stack and numpy-heavy modules; importing them only when their
@@ -44,6 +57,12 @@ def _export(args) -> int:
     from .export_command import cmd_export
 
     return cmd_export(args)
+
+
+def _firmware(args) -> int:
+    from .firmware_command import cmd_firmware
+
+    return cmd_firmware(args)
 
 
 def _sim(args) -> int:
@@ -102,8 +121,12 @@ def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="ecam", description="Electronic cams: motion laws, certified cam tables, a CANopen rig.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = _Parser(prog="ecam", description="Electronic cams: motion laws, certified cam tables, a CANopen rig.",
+                     epilog="Exit status: 0 success, 1 a check failed, 2 bad input (one line on stderr). "
+                            "`ecam COMMAND --help` describes each command.")
+    parser.add_argument("--version", action="version", version=f"ecam {__version__}",
+                        help="print ecam's version and exit")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
 
     p = sub.add_parser("laws", help="the motion laws and their characteristic values")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -171,6 +194,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", metavar="FILE.html",
                    help="write one self-contained HTML report (verdict, checks, plots, scene)")
     p.set_defaults(func=_sim)
+    p = sub.add_parser("firmware", help="write the C runtime (ecam_table.c, .h) and FORMAT.md into a directory")
+    p.add_argument("--emit", metavar="DIR", required=True,
+                   help="directory to write ecam_table.c, ecam_table.h and FORMAT.md into (created if missing)")
+    p.set_defaults(func=_firmware)
     p = sub.add_parser("drive", help="run a virtual CiA 402 drive until interrupted")
     add_drive_arguments(p)
     p.set_defaults(func=_drive)
@@ -178,8 +205,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    arguments = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser()
+    if not arguments:  # a bare `ecam`: what it takes, not only that something is missing
+        print(parser.format_usage().rstrip(), file=sys.stderr)
+        print(f"ecam: error: give a command, one of {', '.join(_commands(parser))} "
+              "(`ecam --help` says what each does)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
-        args = build_parser().parse_args(argv)
+        args = parser.parse_args(arguments)
         return args.func(args)
     except EcamError as exc:
         print(f"ecam: error: {exc}", file=sys.stderr)
@@ -191,8 +225,14 @@ def main(argv=None) -> int:
         return 0
 
 
-def hil_sim_main(argv=None) -> int:
-    """Entry point of the ``hil-sim`` script: `ecam sim` for one scene and `ecam drive`."""
+def _commands(parser: argparse.ArgumentParser) -> list[str]:
+    """The subcommand names of ``parser``."""
+    return [name for action in parser._actions if isinstance(action, argparse._SubParsersAction)
+            for name in action.choices]
+
+
+def build_hil_sim_parser() -> argparse.ArgumentParser:
+    """The ``hil-sim`` command line: `ecam sim` for one scene and `ecam drive`."""
     parser = argparse.ArgumentParser(prog="hil-sim", description=(
         "Software-in-the-loop rig for ecam: a CANopen master, a virtual CiA 402 drive and the "
         "mechanics, in lock-step over a python-can virtual bus."))
@@ -203,7 +243,12 @@ def hil_sim_main(argv=None) -> int:
     drive = commands.add_parser("drive", help="run a virtual drive for an external CANopen master until Ctrl-C")
     add_drive_arguments(drive)
     drive.set_defaults(func=_drive)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def hil_sim_main(argv=None) -> int:
+    """Entry point of the ``hil-sim`` script: `ecam sim` for one scene and `ecam drive`."""
+    args = build_hil_sim_parser().parse_args(argv)
     try:
         return args.func(args)
     except (EcamError, OSError) as exc:

@@ -50,6 +50,12 @@ class Notch:
         self._a = (2.0 * (w * w - k * k) / a0, (k * k - 2.0 * width * w * k + w * w) / a0)
         self.reset()
 
+    @property
+    def coefficients(self) -> tuple[tuple[float, float, float], tuple[float, float]]:
+        """((b0, b1, b2), (a1, a2)): y_k = b0 x_k + b1 x_k-1 + b2 x_k-2 - a1 y_k-1 - a2 y_k-2
+        (the loop analysis, :mod:`hil_sim.tuning`, reads the filter the drive runs)."""
+        return self._b, self._a
+
     def reset(self) -> None:
         """Forget the past (a filter at rest)."""
         self._x1 = self._x2 = self._y1 = self._y2 = 0.0

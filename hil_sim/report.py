@@ -103,6 +103,25 @@ def _relative_part(proof: dict) -> str:
     return text if proof.get("within_relative", True) else text + " (OUTSIDE THE PROOF)"
 
 
+def _tuning_line(tuning: dict) -> str:
+    """The drive's commissioning in one line (:meth:`hil_sim.tuning.Tuning.to_dict`)."""
+    def margin(key: str, unit: str) -> str:
+        value = tuning.get(key)
+        return "inf" if value is None else f"{value:.3g}{unit}"
+    notch = ", ".join(f"{f:.4g} Hz" for f in tuning.get("notch_hz", [])) or "none"
+    limits = tuning.get("limits", {})
+    text = (f"tuning ({tuning['source']}): velocity loop {tuning['velocity_bandwidth_hz']:.4g} Hz "
+            f"(kp {tuning['velocity_kp']:.4g} N m s/rad, ki {tuning['velocity_ki']:.4g} N m/rad), "
+            f"position loop {tuning['position_bandwidth_hz']:.4g} Hz (kp "
+            f"{tuning['position_kp']:.4g} 1/s), notch {notch}; full model: phase margin "
+            f"{margin('phase_margin_deg', ' deg')}, gain margin {margin('gain_margin_db', ' dB')}, "
+            f"Ms {margin('sensitivity_peak', '')}")
+    if limits:
+        text += (f" (limits {limits['phase_margin_deg']:g} deg, {limits['gain_margin_db']:g} dB, "
+                 f"{limits['sensitivity_peak']:g})")
+    return text + ("" if tuning.get("stable", True) else ", UNSTABLE")
+
+
 def check(name: str, value, limit, unit: str, detail: str = "", window: dict | None = None) -> Check:
     """A check that passes when ``value <= limit`` (always, when ``limit`` is None)."""
     value = None if value is None else float(value)
@@ -212,6 +231,8 @@ class Report:
             lines.append(f"machine: {mechanics['gear']}, load/motor inertia ratio "
                          f"{mechanics['inertia_ratio']:.3g}")
         lines += self._effect_lines()
+        if self.summary.get("tuning"):
+            lines.append(_tuning_line(self.summary["tuning"]))
         lines += ["  " + c.line() for c in self.checks]
         bus = self.summary.get("bus", {})
         if bus:

@@ -70,6 +70,9 @@ Layout (units in the names or below; SI unless said otherwise)::
     settle_s = 0.5                     # optional: left out of tracking and following error
     resonance_excitation_percent = 5.0
     motor_saturation_percent = 0.0
+    phase_margin_deg = 45.0            # the loop_stability check (hil_sim.tuning)
+    gain_margin_db = 6.0
+    sensitivity_peak = 2.0             # Ms = max |1 / (1 + L)|
 
     [duration]                         # exactly one of
     master_periods = 3.0               # at the cruise speed
@@ -267,6 +270,9 @@ class LimitsSpec:
     motor_saturation_percent: float = 0.0
     tracking_window: tuple[float, float] | None = None
     settle_s: float = 0.0
+    phase_margin_deg: float = 45.0
+    gain_margin_db: float = 6.0
+    sensitivity_peak: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -595,7 +601,12 @@ def _limits(top: Fields) -> LimitsSpec:
         motor_saturation_percent=raw.number("motor_saturation_percent", default=0.0,
                                             minimum=0.0, maximum=100.0),
         tracking_window=_window(raw, "tracking_window"),
-        settle_s=raw.number("settle_s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S))
+        settle_s=raw.number("settle_s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S),
+        # the loop_stability check's limits (hil_sim.tuning.MarginLimits has the same bounds)
+        phase_margin_deg=raw.number("phase_margin_deg", default=45.0, minimum=0.0, maximum=90.0),
+        gain_margin_db=raw.number("gain_margin_db", default=6.0, minimum=0.0, maximum=60.0),
+        sensitivity_peak=raw.number("sensitivity_peak", default=2.0, minimum=1.0,
+                                    maximum=100.0, strict=True))
 
 
 def _window(raw: Fields, key: str) -> tuple[float, float] | None:

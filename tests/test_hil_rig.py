@@ -70,7 +70,7 @@ def test_stiff_scene_passes_and_says_why_it_runs_its_model(stiff):
     names = [c["name"] for c in data["checks"]]
     assert names == ["following_error", "tracking_error", "coupling_peak_torque",
                      "coupling_rms_torque", "wind_up", "resonance_excitation", "bus_load",
-                     "motor_saturation", "faults"]
+                     "motor_saturation", "faults", "loop_stability"]
     assert stiff.check("tracking_error").value < 0.001  # in
     assert 40.0 < stiff.check("bus_load").value < 60.0  # % at 1 Mbit/s
     assert "timing" not in data
@@ -340,11 +340,24 @@ def test_find_max_speed_brackets_the_limit():
 
 @pytest.mark.slow
 def test_find_max_speed_of_a_scene_that_fails_at_any_speed_stops():
-    """The soft scene's drive hunts at any speed (its torque is clamped in most cycles): the
-    search halves until a trial would be too long, and says that nothing passed."""
-    result = find_max_speed(scene("soft_coupling"), max_runs=12)
+    """With the old fixed gains (a 200 Hz velocity loop, as [drive.gains] gives it) the soft
+    scene's drive hunts at any speed (its torque is clamped in most cycles): the search halves
+    until a trial would be too long, and says that nothing passed."""
+    soft = scene("soft_coupling")
+    hunting = replace(soft, drive=replace(soft.drive, gains=(("velocity_bandwidth_hz", 200.0),)))
+    result = find_max_speed(hunting, max_runs=12)
     assert result["speed"] is None and result["failing_speed"] is not None
     assert not any(r["passed"] for r in result["runs"])
+
+
+def test_find_max_speed_of_the_tuned_soft_scene_is_limited_by_the_machine():
+    """Auto-tuned (issue 20), the soft scene passes below some speed at the full model, and what
+    limits it is the machine (its coupling), not the drive."""
+    result = find_max_speed(scene("soft_coupling").with_fidelity("full"), max_runs=16)
+    assert result["speed"] is not None and result["confirmed"]
+    assert result["limiting_kind"] == "machine"
+    assert set(result["failed_checks"]) <= {"tracking_error", "wind_up", "coupling_peak_torque",
+                                            "coupling_rms_torque", "following_error"}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ecam.app.rig_commands import format_search
+from ecam.app.rig_commands import WHOSE, format_search
 from ecam.camfile import parse_cam
 from hil_sim import SCENES_DIR
 from hil_sim.rig import find_max_speed, run_scene
@@ -165,7 +165,9 @@ def test_find_max_speed_on_the_knife(knife, knife_search):
     assert result["resolution"] >= 0.01 * speed
     text = format_search(result)
     assert f"max speed: {speed:.6g} deg/s = {60.0 * speed / 360.0:.6g} periods per minute" in text
-    assert f"limited by: at {result['failing_speed']:.6g} deg/s FAIL  " in text
+    # whose limit it is (issue 20): the machine's or the drive's, then the check's line
+    whose = WHOSE[result["limiting_kind"]]
+    assert f"limited by: at {result['failing_speed']:.6g} deg/s {whose}FAIL  " in text
     assert f"then {PERIODS_AT_CRUISE} periods" in text
     # each trial reaches cruise, then runs PERIODS_AT_CRUISE whole cuts at that speed
     at_speed = run_scene(trial_scene(knife, speed))

@@ -59,6 +59,11 @@ def sim_command(args: argparse.Namespace) -> int:
     return 0 if report.passed else 1
 
 
+#: How the text says whose limit a search's limiting check is (``limiting_kind``).
+WHOSE = {"machine": "the machine (mechanics): ", "drive": "the drive (tuning, stability, torque): ",
+         "bus": "the bus: "}
+
+
 def format_search(search: dict) -> str:
     """The text of a find-max-speed result."""
     unit = search["unit"]
@@ -71,7 +76,9 @@ def format_search(search: dict) -> str:
              f"periods per minute"
              + (" (confirmed over CANopen)" if search["confirmed"] else " (NOT confirmed over CANopen)")]
     if search["failing_speed"] is not None:
-        lines.append(f"  limited by: at {search['failing_speed']:.6g} {unit} "
+        kind = search.get("limiting_kind")
+        whose = WHOSE.get(kind, "")
+        lines.append(f"  limited by: at {search['failing_speed']:.6g} {unit} {whose}"
                      f"{search['limiting_check'] or ', '.join(search['failed_checks'])}")
     else:
         lines.append("  no failing speed found within the trials")

@@ -17,10 +17,13 @@ from hil_sim.report import Check, Report, check
 from hil_sim.rig.cam import cam_spectrum
 from hil_sim.rig.loop import Record
 from hil_sim.rig.plan import PreparedRun
+from hil_sim.rig.stability import loop_stability_check
 
 
-def analyse(run: PreparedRun, record: Record) -> Report:
-    """The report of a run: every check, in the report's order, and the summary."""
+def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
+    """The report of a run: every check, in the report's order, and the summary; with the
+    axis's ``setup`` (:class:`hil_sim.control.AxisSetup`), the loop's margins too
+    (:func:`hil_sim.rig.stability.loop_stability_check`)."""
     tracking = tracking_error(run, record)
     window = check_window(run, record.cycles)
     peak = mechanics.peak_torque_check(record.peak_coupling_torque,
@@ -36,6 +39,8 @@ def analyse(run: PreparedRun, record: Record) -> Report:
         motor_saturation_check(run, record),
         faults_check(record),
     ]
+    if setup is not None:
+        checks.append(loop_stability_check(run, setup))
     plan, period = run.plan, run.cam.profile.master_period
     series = {"time_s": (np.arange(record.cycles) + 1.0) * plan.cycle_s,
               "master_position": plan.master_units[:record.cycles] % period,

@@ -65,6 +65,8 @@ class PreparedRun:
         Every effect's value for the scene (the scene's, or the default).
     gains : hil_sim.control.Gains
         The drive's gains.
+    tuning : hil_sim.tuning.Tuning or None
+        How the drive was commissioned (the gains' source and margins on the full model).
     """
 
     scene: Scene
@@ -74,6 +76,7 @@ class PreparedRun:
     excitation_hz: float
     effect_values: EffectValues | None = None
     gains: Gains | None = None
+    tuning: object = None
 
     @property
     def cam_hz(self) -> float:

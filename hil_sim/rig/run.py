@@ -14,9 +14,9 @@ import numpy as np
 from ecam.mechanics import Mechanics
 from ecam.plot import check_figure_path
 from ecam.validate import choice
-from hil_sim import effects
+from hil_sim import effects, tuning
 from hil_sim.bus import BusLoad, FaultInjector, open_virtual_bus
-from hil_sim.control import AxisSetup, Gains
+from hil_sim.control import AxisSetup
 from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.plant import significant_harmonic_hz
 from hil_sim.report import Report
@@ -36,7 +36,7 @@ _channels = itertools.count(1)  # a virtual channel of its own for every run in 
 PATHS = ("canopen", "fast")
 
 
-def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
+def run_scene(scene, *, plot=None, path: str = "canopen", tuning=None) -> Report:
     """Run a scene on the rig and return its report.
 
     Parameters
@@ -48,6 +48,9 @@ def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
     path : {"canopen", "fast"}
         Over the virtual CANopen bus (the default), or bus-free (:mod:`hil_sim.rig.fast`: the
         same control and plant without frames; no bus load, no bus faults).
+    tuning : hil_sim.tuning.Tuning, optional
+        The drive's commissioning, when it is already known (a search's trials at other master
+        speeds of the same machine); None: :func:`commission` it.
 
     Returns
     -------
@@ -65,9 +68,10 @@ def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     wall_start = time.perf_counter()
-    run, injector = prepare(scene)
+    run, injector = prepare(scene, tuning)
+    tuning_s = time.perf_counter() - wall_start
     selection = select_effects(run)
-    effects_s = time.perf_counter() - wall_start
+    effects_s = time.perf_counter() - wall_start - tuning_s
     setup = axis_setup(run, selection.included)
     loop_start = time.perf_counter()
     if path == "fast":
@@ -77,14 +81,15 @@ def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
     else:
         record, timing = _run_on_the_bus(run, injector, setup)
     analysis_start = time.perf_counter()
-    report = analyse(run, record)
+    report = analyse(run, record, setup)
     describe_selection(report, selection)
+    report.summary["tuning"] = run.tuning.to_dict()
     analysis_s = time.perf_counter() - analysis_start
     wall_s = time.perf_counter() - wall_start
     loop_s, axis_s = timing["loop_s"], timing["axis_s"]
     simulated_s = report.cycles * scene.drive.cycle_s
     report.timing = {
-        "wall_s": wall_s, "effects_s": effects_s, "setup_s": timing["setup_s"],
+        "wall_s": wall_s, "tuning_s": tuning_s, "effects_s": effects_s, "setup_s": timing["setup_s"],
         "loop_s": loop_s, "axis_s": axis_s, "protocol_s": loop_s - axis_s,
         "analysis_s": analysis_s, "simulated_s": simulated_s, "path": path,
         "real_time_factor": simulated_s / wall_s if wall_s > 0 else math.inf,
@@ -96,9 +101,10 @@ def run_scene(scene, *, plot=None, path: str = "canopen") -> Report:
     return report
 
 
-def prepare(scene: Scene) -> tuple[PreparedRun, FaultInjector | None]:
+def prepare(scene: Scene, tuning=None) -> tuple[PreparedRun, FaultInjector | None]:
     """Everything known before the drive boots: the cam and its table, the mechanics, the
-    master's plan, every effect's value, the gains; and the bus's fault injector."""
+    master's plan, every effect's value, the drive's commissioning (``tuning``, when already
+    known, else :func:`commission`); and the bus's fault injector."""
     cam = compile_cam(scene)
     mechanics = scene.mechanics.build()
     cycle_s = scene.drive.cycle_s
@@ -112,10 +118,26 @@ def prepare(scene: Scene) -> tuple[PreparedRun, FaultInjector | None]:
                                             profile.master_period / abs(speed_units))
     values = effects.resolve(mechanics, dict(scene.mechanics.effects), dict(scene.drive.effects),
                              scene.drive.control_rate_hz)
+    if tuning is None:
+        tuning = commission(scene, mechanics, values)
     run = PreparedRun(scene=scene, cam=cam, mechanics=mechanics, plan=plan,
                       excitation_hz=excitation_hz, effect_values=values,
-                      gains=_gains(scene, mechanics))
+                      gains=tuning.gains, tuning=tuning)
     return run, injector
+
+
+def commission(scene: Scene, mechanics: Mechanics | None = None, values=None):
+    """The drive's tuning for a scene (:func:`hil_sim.tuning.commission`): on the full model,
+    once per machine, whatever the master's speed and the run's fidelity."""
+    mechanics = scene.mechanics.build() if mechanics is None else mechanics
+    if values is None:
+        values = effects.resolve(mechanics, dict(scene.mechanics.effects),
+                                 dict(scene.drive.effects), scene.drive.control_rate_hz)
+    limits = scene.limits
+    return tuning.commission(mechanics, values, scene.drive.cycle_s / scene.drive.substeps,
+                             dict(scene.drive.gains), scene.drive.feedforward,
+                             tuning.MarginLimits(limits.phase_margin_deg, limits.gain_margin_db,
+                                                 limits.sensitivity_peak))
 
 
 def axis_setup(run: PreparedRun, included) -> AxisSetup:
@@ -158,7 +180,8 @@ def select_effects(run: PreparedRun) -> Selection:
     quick = measuring_run(run)
 
     def measure(included) -> list:
-        return analyse(quick, run_fast(quick, axis_setup(quick, included))).checks
+        setup = axis_setup(quick, included)
+        return analyse(quick, run_fast(quick, setup), setup).checks
 
     # fidelity ideal: an ideal drive (no current loop), the controller's rate weighed (a coupling
     # mode above its Nyquist frequency is rung by the torque steps: the reason says so)
@@ -251,24 +274,3 @@ def _counts_per_motor_rad(scene: Scene, cam: CompiledCam, mechanics: Mechanics) 
     """Position counts per motor radian: the cam's counts per slave unit, the slave units per
     load radian and the gear."""
     return cam.scale * scene.mechanics.slave_units_per_load_radian * mechanics.gear_ratio
-
-
-def _gains(scene: Scene, mechanics: Mechanics) -> Gains:
-    """The scene's gains: from the mechanics and bandwidths, then any gain given outright."""
-    values = dict(scene.drive.gains)
-    bandwidth = {k: values.pop(k) for k in ("velocity_bandwidth_hz", "position_bandwidth_hz",
-                                            "integral_ratio") if k in values}
-    feedforward = {k: values.pop(k) for k in ("velocity_feedforward", "acceleration_feedforward")
-                   if k in values}
-    # With feedforward "target" the streamed velocity offset (0x60B1) is added to the speed
-    # command as it is: the drive's own velocity feed-forward would add the speed twice.
-    feedforward.setdefault("velocity_feedforward",
-                           1.0 if scene.drive.feedforward == "offset" else 0.0)
-    gains = Gains.from_mechanics(mechanics, **bandwidth, **feedforward)
-    if "notch_hz" not in values:
-        # As a drive's one-button tuning does: a notch on the torque command at the coupling's
-        # resonance, where the controller can still filter it (hil_sim.filters).
-        resonance = mechanics.torsional_frequency_hz()
-        if math.isfinite(resonance) and resonance < 0.5 * scene.drive.control_rate_hz:
-            values["notch_hz"] = resonance
-    return replace(gains, **values) if values else gains

@@ -29,7 +29,8 @@ from ecam.errors import EcamError, InputError
 from ecam.validate import fail, integer, number
 from hil_sim.rig.cam import compile_cam
 from hil_sim.rig.plan import cruise_s
-from hil_sim.rig.run import run_scene
+from hil_sim.rig.run import commission, run_scene
+from hil_sim.rig.stability import verdict_kind
 from hil_sim.scene import DurationSpec, Scene, load_scene
 
 #: Whole cam periods each trial runs at its cruise speed, after the master got there.
@@ -81,7 +82,8 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
         ``speed`` (highest passing speed, confirmed over CANopen; None if none passed),
         ``unit``, ``periods_per_minute``, ``failing_speed`` (lowest failing speed, None if
         none failed), ``failed_checks`` and ``limiting_check`` (the failing speed's failed
-        checks, and the line of the one that failed most), ``resolution`` (the speed
+        checks, and the line of the one that failed most), ``limiting_kind`` (``"machine"``,
+        ``"drive"`` or ``"bus"``: whose limit that check is), ``resolution`` (the speed
         resolution the search stopped at, and ``resolution_reason``), ``trial_seconds`` (how
         long each trial ran at the found speed), ``confirmed`` (the CANopen run at ``speed``
         passed), ``runs`` (every trial: ``speed``, ``passed``, ``failed``, ``path``, and
@@ -105,6 +107,8 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
     start = scene.master.units_per_second(profile.master_period)
     sign = math.copysign(1.0, start)
     search_fidelity = "ideal" if scene.fidelity == "ideal" else "full"
+    # commissioned once, on the full model, as a machine is: every trial runs the same drive
+    tuning = commission(scene)
     runs: list[dict] = []
     reports: dict = {}
 
@@ -114,7 +118,7 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
             candidate = trial_scene(scene, sign * speed)
             if path == "fast":
                 candidate = candidate.with_fidelity(search_fidelity)
-            report = run_scene(candidate, path=path)
+            report = run_scene(candidate, path=path, tuning=tuning)
         except TrialTooLong:
             raise
         except EcamError as exc:  # an infeasible trial: a failed speed, and why
@@ -318,6 +322,8 @@ def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, r
         # a speed at which the scene could not run at all is limited by why, in its words
         "limiting_check": (limiting.line() if limiting is not None else
                            f"cannot run: {failing_run['reason']}" if "reason" in failing_run else None),
+        # whose limit it is: the machine's (mechanics) or the drive's (tuning, stability)
+        "limiting_kind": verdict_kind(limiting.name) if limiting is not None else None,
         "resolution": resolution, "resolution_reason": why,
         "periods_at_cruise": PERIODS_AT_CRUISE, "trial_seconds": trial_seconds,
         "confirmed": confirmed, "runs": runs,

@@ -38,7 +38,7 @@ SCENE_TABLES = {
     "cam": "The cam file and the table the rig compiles from it (the cam file's own `[table]` "
            "fills in what is not given).",
     "drive": "The virtual CiA 402 drive: node, cycle, control loop and the drive's effects.",
-    "drive.gains": "The cascade's gains: bandwidths (the gains are computed from the mechanics) "
+    "drive.gains": "The cascade's gains, auto-tuned when left out: bandwidths (the gains from the mechanics) "
                    "and/or raw gains, which win.",
     "mechanics": "Motor, gear, coupling and load (ecam.Mechanics), SI units, and the mechanical "
                  "effects.",
@@ -172,8 +172,8 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("drive", "feedforward", "choice", "Where the velocity feed-forward comes from: the velocity "
           "offset 0x60B1 streamed with the targets, or differences of the targets.",
           default="offset", choices=FEEDFORWARD_SOURCES, source="hil_sim.control"),
-    Field("drive", "gains", "table", "The `[drive.gains]` table.", default_text="computed from "
-          "the mechanics"),
+    Field("drive", "gains", "table", "The `[drive.gains]` table.", default_text="auto-tuned "
+          "(hil_sim.tuning, docs/tuning.md)"),
     Field("drive", "encoder_counts_per_rev", "integer", "The motor encoder's resolution; 0 = ideal "
           "feedback.", unit="counts/rev", default=DEFAULT_ENCODER_COUNTS, minimum=0, maximum=2**40,
           limits="0 or >= 4", source=_EFFECTS),
@@ -189,12 +189,14 @@ SCENE_FIELDS: tuple[Field, ...] = (
     *(Field("drive.gains", key, "number", text, unit=unit, default=default, default_text=default_text,
             minimum=0.0, limits=limits, source=source)
       for key, text, unit, default, default_text, limits, source in (
-          ("velocity_bandwidth_hz", "The velocity loop's bandwidth.", "Hz", 200.0, "", "> 0 at run time",
-           "hil_sim.control (Gains.from_mechanics)"),
-          ("position_bandwidth_hz", "The position loop's bandwidth.", "Hz", 30.0, "", "> 0 at run time",
-           "hil_sim.control (Gains.from_mechanics)"),
+          ("velocity_bandwidth_hz", "The velocity loop's bandwidth (kp = J_eq 2 pi f).", "Hz", None,
+           "auto-tuned: the highest that keeps the loop's margins on the full model", "> 0 at run time",
+           "hil_sim.tuning"),
+          ("position_bandwidth_hz", "The position loop's bandwidth.", "Hz", None,
+           "auto-tuned: the highest that keeps the position loop's margins", "> 0 at run time",
+           "hil_sim.tuning"),
           ("integral_ratio", "The velocity integrator's corner over the velocity bandwidth.", "", 0.25,
-           "", "", "hil_sim.control (Gains.from_mechanics)"),
+           "", "", "hil_sim.tuning (INTEGRAL_RATIO, the symmetrical optimum with a = 4)"),
           ("position_kp", "Position loop gain (rad/s per rad).", "1/s", None, "from the bandwidths",
            "> 0 at run time", "hil_sim.control"),
           ("velocity_kp", "Velocity loop proportional gain.", "N m s/rad", None, "from the bandwidths",
@@ -206,8 +208,8 @@ SCENE_FIELDS: tuple[Field, ...] = (
           ("acceleration_feedforward", "Share of the model torque fed forward.", "", 1.0, "", "",
            "hil_sim.control (Gains)"),
           ("notch_hz", "Centre of the notch on the torque command; 0: none.", "Hz", None,
-           "the coupling's torsional frequency (two-mass), as a drive's one-button tuning does",
-           "below the controller's Nyquist frequency", "hil_sim.rig.run"),
+           "auto-tuned: at the torsional mode where it allows a higher bandwidth, else none",
+           "below the controller's Nyquist frequency", "hil_sim.tuning"),
           ("notch_width", "The notch's width (its poles' damping ratio).", "", 0.5, "", "> 0 at run time",
            "hil_sim.control (Gains)"),
           ("notch_depth_db", "The notch's depth.", "dB", 30.0, "", "> 0 at run time",
@@ -275,6 +277,14 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "tracking check applies (the cut zone of a knife); end < start spans the seam.",
           unit="master units", default_text="the whole period", limits="two numbers, start != end, "
           "each within +-1e12", source=_PARSER),
+    Field("limits", "phase_margin_deg", "number", "The loop_stability check: least phase margin "
+          "of the velocity and position loops as they run.", unit="deg", default=45.0, minimum=0.0,
+          maximum=90.0, source="hil_sim.tuning (MarginLimits)"),
+    Field("limits", "gain_margin_db", "number", "The loop_stability check: least gain margin.",
+          unit="dB", default=6.0, minimum=0.0, maximum=60.0, source="hil_sim.tuning (MarginLimits)"),
+    Field("limits", "sensitivity_peak", "number", "The loop_stability check: largest sensitivity "
+          "peak Ms = max |1 / (1 + L)|.", default=2.0, minimum=1.0, exclusive_minimum=True,
+          maximum=100.0, source="hil_sim.tuning (MarginLimits)"),
     Field("limits", "settle_s", "number", "Left out of the tracking and following-error checks at "
           "the start.", unit="s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S, source=_PARSER),
 

@@ -20,12 +20,12 @@ from .design import combination_segments
 from .errors import CamFileError
 from .laws import LAW_NAMES, LAWS
 from .profile import (BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_master_period, check_segment_count,
-                      check_span)
+                      check_span, check_tiling)
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
 
-__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_toml", "show"]
+__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_toml", "show"]
 
 # The built-in cams (the seeds'), shipped with the package: a link to firmware_tables/cams in a
 # checkout, a copy in an installed wheel.
@@ -61,17 +61,19 @@ def load_cam(path) -> CamProfile:
 MAX_FILE_BYTES = 4 * 2**20
 
 
-def read_toml(path, what: str) -> dict:
-    """Parse a TOML file into a mapping.
+def read_bounded(path, what: str) -> bytes:
+    """The bytes of a file, read without waiting and without bound on nothing.
 
     Only regular files of at most :data:`MAX_FILE_BYTES` are read, so a device such as
-    ``/dev/zero`` or a FIFO is refused at once instead of read without bound or waited on.
+    ``/dev/zero`` or a FIFO is refused at once instead of read without bound or waited on, and
+    a kernel file that looks regular but has nothing to read now (``/proc/kmsg``) is refused
+    instead of waited on. Everything that keys, hashes or parses a user's file reads it here.
 
     Raises
     ------
     CamFileError
-        A missing, unreadable, irregular, oversized or malformed file (nesting too deep for
-        the parser included): one line naming the file and what is wrong.
+        A missing, unreadable, irregular or oversized file: one line naming the file and what
+        is wrong.
     """
     path = Path(path)
     shown = show(str(path))  # cut to 60 characters: a hostile path cannot flood the terminal
@@ -92,17 +94,36 @@ def read_toml(path, what: str) -> dict:
         if info.st_size > MAX_FILE_BYTES:
             raise CamFileError(f"{what} {shown}: {info.st_size} bytes should be at most "
                                f"{MAX_FILE_BYTES}")
-        handle = os.fdopen(fd, "rb")
-    except BaseException:
+        chunks, size = [], 0
+        while size <= MAX_FILE_BYTES:
+            chunk = os.read(fd, MAX_FILE_BYTES + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except BlockingIOError:  # still non-blocking: a kernel file with nothing to read now
+        raise CamFileError(f"{what} {shown} cannot be read without waiting (a kernel or device "
+                           "file?)") from None
+    except OSError as exc:
+        raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
+    finally:
         os.close(fd)
-        raise
-    with handle:
-        try:
-            data = handle.read(MAX_FILE_BYTES + 1)
-        except OSError as exc:
-            raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
-    if len(data) > MAX_FILE_BYTES:  # the file grew while we read it
+    if size > MAX_FILE_BYTES:  # the file grew while we read it (or /proc reports no size)
         raise CamFileError(f"{what} {shown}: more than {MAX_FILE_BYTES} bytes")
+    return b"".join(chunks)
+
+
+def read_toml(path, what: str) -> dict:
+    """Parse a TOML file into a mapping (read by :func:`read_bounded`).
+
+    Raises
+    ------
+    CamFileError
+        A missing, unreadable, irregular, oversized or malformed file (nesting too deep for
+        the parser included): one line naming the file and what is wrong.
+    """
+    data = read_bounded(path, what)
+    shown = show(str(path))
     try:
         return tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:
@@ -136,7 +157,7 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
     with top.calling():
         period = check_master_period(top.get("master_period"))
     periodic = top.boolean("periodic", default=True)
-    slave_unit = top.string("slave_unit", default="mm")
+    slave_unit = top.text("slave_unit", default="mm", maximum=validate.MAX_UNIT_CHARS)
     table = _table(top, slave_unit)
     raw_segments = top.get("segment")
     if raw_segments is None:
@@ -168,7 +189,10 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
             entries.append((r, law_name, placement))
         else:
             with r.calling(_file_name_in(r)):
-                entries.append(Segment(*placement, law_name, r.string("name", default="")))
+                entries.append(Segment(*placement, law_name, r.text("name", default="")))
+    with top.calling(_file_name):  # placement first: a 'match' reads a neighbour's derivatives
+        check_tiling([entry[2][:2] if isinstance(entry, tuple) else (entry.master_start, entry.master_end)
+                      for entry in entries], period)
     segments = [_polynomial(entries, k, periodic) if isinstance(entry, tuple) else entry
                 for k, entry in enumerate(entries)]
     net_stroke = top.number("net_stroke")  # checked against the strokes by CamProfile
@@ -240,7 +264,7 @@ def _combination(r: Fields, placement) -> tuple[Segment, Segment]:
     with r.calling(_file_name_in(r)):
         return combination_segments(laws[0], laws[1], master_start=master_start, span=master_end - master_start,
                                     slave_start=slave_start, stroke=slave_end - slave_start, accel_ratio=ratio,
-                                    name=r.string("name", default=""))
+                                    name=r.text("name", default=""))
 
 
 def _polynomial(entries: list, k: int, periodic: bool) -> Segment:
@@ -264,7 +288,7 @@ def _polynomial(entries: list, k: int, periodic: bool) -> Segment:
         if degree == 5 and f"{end}_jerk" in r:
             conditions[f"{end}_jerk"] = r.get(f"{end}_jerk")  # refused by Segment.polynomial
     with r.calling(_file_name_in(r)):
-        return Segment.polynomial(*placement, degree=degree, name=r.string("name", default=""), **conditions)
+        return Segment.polynomial(*placement, degree=degree, name=r.text("name", default=""), **conditions)
 
 
 def _table(top: Fields, slave_unit: str) -> dict:

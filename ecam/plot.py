@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,13 @@ from .atomic_files import write_files
 from .errors import InputError
 from .profile import ORDER_NAMES, CamProfile
 
-__all__ = ["plot_profile", "check_figure_path", "save_figure", "MARKED", "LABELLED", "PER_SEGMENT"]
+__all__ = ["plot_profile", "check_figure_path", "save_figure", "MARKED", "LABELLED", "PER_SEGMENT",
+           "TEXT_AS_WRITTEN"]
+
+#: matplotlib settings under which every text is drawn as written: names and units come from
+#: files, and a ``$`` in them must not start mathtext (a ``"$$"`` unit ended in a parser
+#: traceback, issue 28) nor a backslash a TeX command. No figure here uses mathtext.
+TEXT_AS_WRITTEN = {"text.parse_math": False, "text.usetex": False}
 
 FIGURE_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
 
@@ -23,7 +30,7 @@ def check_figure_path(path) -> None:
     if suffix not in FIGURE_FORMATS:
         raise InputError(f"plot file {str(path)!r} has format {suffix or '(none)'!r}; "
                          f"expected one of {', '.join(FIGURE_FORMATS)}")
-    if not path.parent.is_dir():
+    if not os.path.isdir(path.parent):  # never raises (Path.is_dir does past NAME_MAX)
         raise InputError(f"plot file {str(path)!r}: directory {str(path.parent)!r} does not exist")
 
 
@@ -101,6 +108,11 @@ def plot_profile(profile: CamProfile, path, samples: int = 4001) -> None:
     inside = starts[:, None] + spans[:, None] * (np.arange(1, PER_SEGMENT + 1) / (PER_SEGMENT + 1))
     x = np.unique(np.concatenate([np.linspace(0.0, profile.master_period, samples), joints, inside.ravel()]))
     report = profile.check()
+    with matplotlib.rc_context(TEXT_AS_WRITTEN):  # read when each text is made, and when drawn
+        _draw_profile(plt, profile, x, joints, report, path)
+
+
+def _draw_profile(plt, profile: CamProfile, x, joints, report, path) -> None:
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(9, 9), constrained_layout=True)
     units = [profile.slave_unit] + [f"{profile.slave_unit}/{profile.master_unit}" + (f"^{k}" if k > 1 else "")
                                     for k in (1, 2, 3)]

@@ -57,6 +57,27 @@ def check_span(span, master_period: float | None = None, field: str = "span") ->
     return span
 
 
+def check_tiling(placements, master_period: float) -> None:
+    """Segments placed at ``[(master_start, master_end), ...]`` tile ``0..master_period``: each
+    starts where the one before ends, spans at least the least span (:func:`check_span`), and the
+    last ends at the period. The one rule for placement: :class:`CamProfile` uses it, and so does
+    the cam file reader before it solves a polynomial's ``match`` from a neighbour (a neighbour
+    that runs far past the period has derivatives that overflow)."""
+    position = 0.0
+    for i, (start, end) in enumerate(placements):
+        if not math.isclose(start, position, rel_tol=0, abs_tol=1e-9 * master_period):
+            kind = "a gap" if start > position else "an overlap"
+            where = f"where segment[{i - 1}] ends" if i else "the start of the period"
+            raise validate.fail(f"segment[{i}].master_start", start,
+                                f"{validate.show(position)}, {where} (it leaves {kind})")
+        check_span(end - start, master_period, f"segment[{i}].span")
+        position = end
+    if not math.isclose(position, master_period, rel_tol=1e-12):
+        kind = "a gap" if position < master_period else "an overlap"
+        raise validate.fail(f"segment[{len(placements) - 1}].master_end", position,
+                            f"{validate.show(master_period)}, the master_period (it leaves {kind})")
+
+
 def check_segment_count(count: int, field: str = "segments") -> int:
     """A number of segments: at most ``MAX_SEGMENTS``."""
     if count > MAX_SEGMENTS:
@@ -120,7 +141,7 @@ class Segment:
                                                            minimum=-MAX_SLAVE, maximum=MAX_SLAVE))
         check_span(self.span)
         object.__setattr__(self, "law", _law(self.law))
-        validate.string("name", self.name)
+        validate.text("name", self.name)
         if self.law == DWELL and self.stroke != 0:
             raise validate.fail("stroke", self.stroke, "0 for a dwell (or give a law that moves)")
         if self.boundary is not None:
@@ -427,24 +448,13 @@ class CamProfile:
         period = check_master_period(self.master_period)
         object.__setattr__(self, "master_period", period)
         validate.boolean("periodic", self.periodic)
-        for name in ("name", "master_unit", "slave_unit"):
-            validate.string(name, getattr(self, name))
+        validate.text("name", self.name)
+        for unit in ("master_unit", "slave_unit"):  # written into exports, plots and messages
+            validate.text(unit, getattr(self, unit), maximum=validate.MAX_UNIT_CHARS)
         if not isinstance(self.table, Mapping):
             raise validate.fail("table", self.table, "a mapping of table settings (interp, points, ...)")
         object.__setattr__(self, "table", dict(self.table))
-        position = 0.0
-        for i, seg in enumerate(segments):
-            if not math.isclose(seg.master_start, position, rel_tol=0, abs_tol=1e-9 * period):
-                kind = "a gap" if seg.master_start > position else "an overlap"
-                where = f"where segment[{i - 1}] ends" if i else "the start of the period"
-                raise validate.fail(f"segment[{i}].master_start", seg.master_start,
-                                    f"{validate.show(position)}, {where} (it leaves {kind})")
-            check_span(seg.span, period, f"segment[{i}].span")
-            position = seg.master_end
-        if not math.isclose(position, period, rel_tol=1e-12):
-            kind = "a gap" if position < period else "an overlap"
-            raise validate.fail(f"segment[{len(segments) - 1}].master_end", position,
-                                f"{validate.show(period)}, the master_period (it leaves {kind})")
+        check_tiling([(seg.master_start, seg.master_end) for seg in segments], period)
         object.__setattr__(self, "_starts", np.array([s.master_start for s in segments]))
         self._check_net_stroke()
 

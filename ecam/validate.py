@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import decimal
 import math
+import unicodedata
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import contextmanager
 
@@ -151,6 +152,38 @@ def string(field: str, value, error=InputError) -> str:
     return value
 
 
+#: Longest name (of a cam, a segment, a scene) [characters]: a line of a report, not a file;
+#: as long as a file name may be (POSIX NAME_MAX on Linux), since a name defaults to its file's.
+MAX_NAME_CHARS = 255
+#: Longest unit [characters] ("deg", "mm", "rev", "counts", ...).
+MAX_UNIT_CHARS = 32
+#: Longest free text (a scene's description) [characters].
+MAX_DESCRIPTION_CHARS = 4000
+# The bidirectional embedding, override and isolate controls (Unicode UAX #9, table 1: LRE RLE
+# PDF LRO RLO, LRI RLI FSI PDI): in a generated file they make a comment display as code and
+# code as a comment ("Trojan Source", CVE-2021-42574).
+_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
+def text(field: str, value, *, maximum: int = MAX_NAME_CHARS, error=InputError) -> str:
+    """``value``, a string of at most ``maximum`` characters without control characters.
+
+    Names and units go into exported files (comments of IEC 61131-3 source, CSV headers, ISG
+    tables, JUnit XML), plots and one-line messages: a line break there ends a comment or a
+    row, a NUL or an ESC garbles a terminal, XML 1.0 has no encoding for most C0 characters.
+    Refused: Unicode category Cc (C0, DEL, C1) but the tab, which is white space everywhere
+    these go, the line and paragraph separators (Zl, Zp) and the bidirectional controls.
+    """
+    string(field, value, error)
+    if len(value) > maximum:
+        raise fail(field, value, f"a text of at most {maximum} characters ({len(value)} given)", error)
+    for index, char in enumerate(value):
+        if (unicodedata.category(char) in ("Cc", "Zl", "Zp") and char != "\t") or char in _BIDI_CONTROLS:
+            raise fail(field, value, f"a text without control characters ({ascii(char)} at {index})",
+                       error)
+    return value
+
+
 class Fields:
     """Reads the fields of one TOML table (or a nested table of it) with one-line errors.
 
@@ -245,6 +278,13 @@ class Fields:
         if value is None:
             return default
         return self._checked(string, key, value)
+
+    def text(self, key: str, default=None, required=False, maximum: int = MAX_NAME_CHARS):
+        """A name, unit or description: see :func:`text`."""
+        value = self._get(key, required, "a string")
+        if value is None:
+            return default
+        return self._checked(text, key, value, maximum=maximum)
 
     @contextmanager
     def calling(self, rename: Callable[[str], str] | None = None):

@@ -18,6 +18,21 @@ import math
 
 from ecam import validate
 
+#: Lowest notch centre [Hz]. The design divides by tan(w dt / 2), which is 0 for a frequency
+#: such as 5e-324 Hz (a ZeroDivisionError, issue 28); and far above that underflow a notch is
+#: pointless: a current-setpoint notch is set against a mechanical resonance of hertz to
+#: kilohertz, and below 0.1 Hz its octave-wide stop band (width 0.5) only slows a rigid motion.
+MIN_NOTCH_HZ = 0.1
+
+
+def check_notch_hz(field: str, frequency_hz) -> float:
+    """A notch centre: 0 (no notch) or at least :data:`MIN_NOTCH_HZ` [Hz]. (The Nyquist bound
+    depends on the controller period and is checked where the filter is designed.)"""
+    frequency_hz = validate.number(field, frequency_hz, minimum=0.0)
+    if 0.0 < frequency_hz < MIN_NOTCH_HZ:
+        raise validate.fail(field, frequency_hz, f"0 (no notch) or >= {MIN_NOTCH_HZ:g} Hz")
+    return frequency_hz
+
 
 class Notch:
     """A discrete notch filter (direct form I).
@@ -35,7 +50,7 @@ class Notch:
     """
 
     def __init__(self, frequency_hz: float, width: float, depth_db: float, dt: float) -> None:
-        frequency_hz = validate.positive("notch_hz", frequency_hz)
+        frequency_hz = validate.number("notch_hz", frequency_hz, minimum=MIN_NOTCH_HZ)
         validate.positive("notch_width", width)
         validate.positive("notch_depth_db", depth_db)
         if frequency_hz >= 0.5 / dt:

@@ -92,11 +92,12 @@ from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, TableSpec, parse_tolerance
-from ecam.validate import Fields, choice, fail, number, show
+from ecam.validate import MAX_DESCRIPTION_CHARS, Fields, choice, fail, number, show
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
 from hil_sim.faults import FRAME_KINDS, Faults
+from hil_sim.filters import check_notch_hz
 
 #: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
@@ -408,8 +409,8 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
                                               "limits", "duration"})
-    name = top.string("name", default=Path(source).stem)
-    description = top.string("description", default="")
+    name = top.text("name", default=Path(source).stem)
+    description = top.text("description", default="", maximum=MAX_DESCRIPTION_CHARS)
     cam_mode = top.choice("cam_mode", CAM_MODES, default="controller")
     fidelity = top.choice("fidelity", FIDELITIES, default="auto")
     master = _master(top)
@@ -509,6 +510,9 @@ def _drive(top: Fields) -> DriveSpec:
     gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
     gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
+    if "notch_hz" in gains_raw:  # one that cannot be designed is refused here, not in the run
+        with gains_raw.calling(lambda field: field):
+            check_notch_hz(gains_raw.name("notch_hz"), gains_raw.get("notch_hz"))
     cycle_s = raw.number("cycle_s", default=0.001, minimum=1e-5, maximum=0.255)
     # 0x60C2 holds the period as value x 10^index with an 8-bit value: it must be representable.
     if interpolation_period(cycle_s) is None:

@@ -156,13 +156,14 @@ def test_smallest_cycle_time_the_validator_allows_runs(tmp_path):
 
 
 def test_poly5_boundary_that_overflows_when_normalized(tmp_path):
-    # Every number is within validate.MAX_MAGNITUDE (1e150); normalized, 1e100 * 1e100**2 / 1e-100
-    # overflows.
+    # Every number is within validate.MAX_MAGNITUDE (1e150); normalized, 1e100 * 1e12**2 / 1e-100
+    # is 1e224. (The span is the longest period: a segment longer than its period is refused
+    # first, before any boundary condition is solved, issue 28 item 9.)
     path = tmp_path / "p5.toml"
-    path.write_text('master_period = 360.0\nperiodic = false\n[[segment]]\nlaw = "poly5"\n'
-                    'span = 1e100\nstroke = 1e-100\nstart_acceleration = 1e100\n')
+    path.write_text('master_period = 1e12\nperiodic = false\n[[segment]]\nlaw = "poly5"\n'
+                    'span = 1e12\nstroke = 1e-100\nstart_acceleration = 1e100\n')
     assert_one_line(run_cli("check", path), "segment[0].start_acceleration: 1e+100 should be finite and at most "
-                    "1e+150 once normalized (value * span^2 / stroke; span 1e+100, stroke 1e-100)")
+                    "1e+150 once normalized (value * span^2 / stroke; span 1e+12, stroke 1e-100)")
 
 
 # --- found by the fuzz (tests/test_hostile_fuzz.py), in this process ---------------------------

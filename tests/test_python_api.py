@@ -16,6 +16,12 @@ from ecam import CamProfile, Segment
 from ecam.camfile import parse_cam
 from ecam.laws import LAWS
 
+# Any text a name may be (ecam.validate.text: no control character but the tab, no line or
+# paragraph separator, no bidirectional control; issue 28).
+NAMES = functools.partial(st.text, st.characters(
+    blacklist_categories=("Cc", "Cs", "Zl", "Zp"),
+    blacklist_characters="\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069") | st.just("\t"))
+
 ROOT = Path(__file__).resolve().parent.parent
 BUILT_IN = [*sorted((ROOT / "ecam" / "cams").glob("*.toml")),
             *sorted((ROOT / "firmware_tables" / "cams").glob("*.toml"))]
@@ -191,7 +197,7 @@ def profiles(draw):
         first = master if i else 0.0
         end = first + span
         if kind == "law":
-            law, name = draw(st.sampled_from(RISE_LAWS)), draw(st.text(max_size=8))
+            law, name = draw(st.sampled_from(RISE_LAWS)), draw(NAMES(max_size=8))
             seg = Segment(first, end, slave, slave + stroke, law, name)
         elif kind == "dwell":
             seg = Segment(first, end, slave, slave, "dwell")
@@ -211,7 +217,7 @@ def profiles(draw):
     periodic = draw(st.booleans())
     # a periodic cam may declare its advance per period as its net stroke (0 included)
     net_stroke = segments[-1].slave_end - start if periodic and draw(st.booleans()) else None
-    return CamProfile(tuple(segments), master, periodic, name=draw(st.text(max_size=12)),
+    return CamProfile(tuple(segments), master, periodic, name=draw(NAMES(max_size=12)),
                       master_unit=draw(st.sampled_from(["deg", "rad", "mm"])), slave_unit="mm", table=table,
                       net_stroke=net_stroke), start
 

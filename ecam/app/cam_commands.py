@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from ecam import validate
-from ecam.atomic_files import write_files
+from ecam.atomic_files import check_outputs, write_files
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
 from ecam.errors import InputError
@@ -161,6 +161,7 @@ def print_check(profile, report, speed=None):
 
 
 def cmd_plot(args) -> int:
+    check_outputs([args.output], [args.cam])
     profile = load_cam(args.cam)
     plot_profile(profile, args.output)
     print(f"wrote {args.output}")
@@ -176,13 +177,15 @@ def cmd_compile(args) -> int:
     for f in formats:
         if f not in EXPORTERS:
             raise InputError(f"--format {validate.show(f)} should be one of {', '.join(EXPORTERS)}")
+    name = profile.name or Path(args.cam).stem
+    # before the work: an output that is the cam itself or a device is refused at once
+    check_outputs(table_paths(name, Path(args.output), formats), [args.cam])
     table = compile_table(
         profile, interp=args.interp, points=args.points, tolerance=args.tolerance,
         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
         progress=progress_bar(f"certifying {profile.name}"),
     )
-    name = profile.name or Path(args.cam).stem
-    files = write_table(table, name, Path(args.output), formats)
+    files = write_table(table, name, Path(args.output), formats, inputs=[args.cam])
     summary = table_summary(table, files)
     if args.json:
         print(json.dumps(summary, indent=1))
@@ -193,14 +196,18 @@ def cmd_compile(args) -> int:
     return 0
 
 
-def write_table(table, name, directory: Path, formats) -> list[str]:
+def table_paths(name, directory: Path, formats) -> list[Path]:
+    """The files :func:`write_table` writes, in the order of ``formats``."""
+    return [directory / (identifier(name) + EXPORTERS[f][0]) for f in formats]
+
+
+def write_table(table, name, directory: Path, formats, inputs=()) -> list[str]:
     contents = {}
-    for f in formats:
-        suffix, render = EXPORTERS[f]
-        contents[directory / (identifier(name) + suffix)] = render(table, name)
+    for f, path in zip(formats, table_paths(name, directory, formats)):
+        contents[path] = EXPORTERS[f][1](table, name)
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        write_files(contents)
+        write_files(contents, inputs)
     except OSError as exc:
         raise InputError(f"output directory {validate.show(str(directory))} cannot be written: "
                          f"{exc.strerror or exc}") from None

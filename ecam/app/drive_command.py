@@ -3,7 +3,8 @@ master under test in another process.
 
 It runs until Ctrl-C, SIGINT or SIGTERM (a service manager, `kill`), then shuts its bus down
 and exits 0. Exit status 2, one line on stderr, for bad input, a transport that cannot be
-opened, or a bus that fails while the drive runs (python-can raised from ``recv``).
+opened, a bus that fails while the drive runs (python-can raised from ``recv``), or a serving
+thread that ended for any other reason: a drive that answers nothing must not look alive.
 
 A shell starts a background job (`ecam drive ... &` in a script) with SIGINT ignored, as it does
 for every program; the drive keeps that, so in a script stop it with SIGTERM (`kill $pid`).
@@ -14,6 +15,7 @@ from __future__ import annotations
 import argparse
 import signal
 import threading
+import time
 
 from ecam.errors import EcamError
 
@@ -114,14 +116,21 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
             bus.shutdown()
         raise
     stop = stop or threading.Event()
-    restore = _stop_on_signals(stop)
+    signalled, restore = _stop_on_signals()
     print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "
           f"{channel!r} ({_REACH[args.interface]}); Ctrl-C or SIGTERM stops it", flush=True)
+    deaf = False
     try:
         drive.start()
-        while not stop.wait(0.1):
+        # Polled, not waited on: the signal handler takes no lock (see _stop_on_signals), and
+        # Event.is_set() takes none either.
+        while not (stop.is_set() or signalled):
             if drive.failure is not None:
                 break
+            if not drive.runner.alive:
+                deaf = True
+                break
+            time.sleep(_POLL_S)
     except KeyboardInterrupt:
         pass  # SIGINT before its handler was set, or where none could be set
     except (can.CanError, OSError) as exc:  # the boot-up could not be sent
@@ -134,26 +143,38 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     if drive.failure is not None:
         raise EcamError(f"interface {args.interface!r} channel {channel!r} failed while the drive "
                         f"ran: {drive.failure}")
+    if deaf:
+        raise EcamError(f"the drive's serving thread on interface {args.interface!r} channel "
+                        f"{channel!r} stopped: the drive answered nothing more (see the log)")
     print("virtual drive stopped", flush=True)
     return 0
 
 
-def _stop_on_signals(stop: threading.Event):
-    """Let SIGTERM (a service manager, `kill`) and SIGINT (Ctrl-C) set ``stop``, so the drive
+#: How often the main thread looks at the stop request and the serving thread [s].
+_POLL_S = 0.05
+
+
+def _stop_on_signals():
+    """Let SIGTERM (a service manager, `kill`) and SIGINT (Ctrl-C) ask the drive to stop, so it
     stops between two frames, shuts its bus down and exits 0. A SIGINT the process was started
-    with ignored (a background job of a shell) stays ignored. Returns the function that puts the
-    previous handlers back."""
+    with ignored (a background job of a shell) stays ignored.
+
+    The handler only appends to a list: Python runs it in the main thread between two bytecodes,
+    possibly inside ``Event.wait()`` holding the event's lock, so a handler that took that lock
+    (``Event.set()``) deadlocked the drive on SIGTERM (issue 28, item 11). Returns the list (empty
+    until a signal came) and the function that puts the previous handlers back."""
+    signalled: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        return lambda: None  # signal handlers can be set from the main thread only
+        return signalled, lambda: None  # signal handlers can be set from the main thread only
     previous = {}
     for signum in (signal.SIGTERM, signal.SIGINT):
         handler = signal.getsignal(signum)
         if signum == signal.SIGINT and handler is not signal.default_int_handler:
             continue  # ignored, or a handler of the caller's: leave it
-        previous[signum] = signal.signal(signum, lambda number, frame: stop.set())
+        previous[signum] = signal.signal(signum, lambda number, frame: signalled.append(number))
 
     def restore() -> None:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
-    return restore
+    return signalled, restore

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ecam.atomic_files import write_files
+from ecam.atomic_files import check_outputs, write_files
 from ecam.camfile import load_cam
 from ecam.errors import InputError
 from ecam.export import export_cam, identifier, json_safe
@@ -16,12 +16,14 @@ from ecam.export import export_cam, identifier, json_safe
 def cmd_export(args) -> int:
     profile = load_cam(args.cam)
     name = profile.name or Path(args.cam).stem
+    if args.output:  # before the work (the default name depends on the format's suffix)
+        check_outputs([args.output], [args.cam])
     result = export_cam(profile, args.to, tolerance=args.tolerance, points=args.points, interp=args.interp,
                         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
                         name=name)
     path = Path(args.output) if args.output else Path(f"{identifier(name)}.{result.format}{result.suffix}")
     try:
-        write_files({path: result.content})
+        write_files({path: result.content}, inputs=[args.cam])
     except OSError as exc:
         raise InputError(f"output: {str(path)!r} cannot be written: {exc.strerror or exc}") from None
     if args.json:

@@ -19,6 +19,7 @@ attributes; there is no timestamp and no host name.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
@@ -78,6 +79,27 @@ def _flat(value) -> str:
                  if item not in (None, {}, [])]
         return ", ".join(parts) if parts else "none"
     return str(value)
+
+
+# XML 1.0 (Fifth Edition), section 2.2, production [2] Char: #x9 | #xA | #xD | [#x20-#xD7FF] |
+# [#xE000-#xFFFD] | [#x10000-#x10FFFF]. ElementTree writes any other character as it is, and a
+# document holding one is not well-formed (a CI server then drops the whole report).
+_NOT_XML_CHAR = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _xml_chars(text: str) -> str:
+    """``text`` with each character XML 1.0 cannot hold written as its Python escape."""
+    return _NOT_XML_CHAR.sub(lambda m: ascii(m.group())[1:-1], text)
+
+
+def _well_formed(root: ET.Element) -> None:
+    """Every attribute and text of the tree within XML 1.0's characters (file names and error
+    messages may hold control characters)."""
+    for element in root.iter():
+        for key, value in element.attrib.items():
+            element.set(key, _xml_chars(value))
+        if element.text:
+            element.text = _xml_chars(element.text)
 
 
 def _time(seconds) -> str:
@@ -152,5 +174,6 @@ def junit_xml(results, suites_name: str = "ecam sim") -> str:
     root.set("failures", str(totals["failures"]))
     root.set("errors", str(totals["errors"]))
     root.set("time", _time(totals["time"]))
+    _well_formed(root)
     ET.indent(root)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

@@ -27,6 +27,7 @@ time of that run. The rig is deterministic and has no shared state between runs,
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -34,6 +35,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ecam.errors import CamFileError, EcamError, InputError, SimulationError
+from ecam.validate import show
 
 __all__ = ["SCENE_SECTIONS", "SceneCrashed", "is_scene_file", "scene_files", "run_scenes",
            "summary_table", "exit_status", "outcome_line", "scene_labels"]
@@ -83,17 +85,19 @@ def scene_files(paths) -> list[Path]:
     """
     found: list[Path] = []
     for item in paths:
+        if not str(item):  # Path("") is ".": every scene under the working directory
+            raise InputError("scene '': should be a path (an empty argument names no file)")
         path = Path(item)
-        if path.is_dir():
+        if os.path.isdir(path):  # os.path never raises (Path.is_dir does past NAME_MAX)
             inside = [p for p in sorted(path.rglob("*.toml")) if is_scene_file(p)]
             if not inside:
-                raise InputError(f"scene directory {str(path)!r} holds no scene file (*.toml "
+                raise InputError(f"scene directory {show(str(path))} holds no scene file (*.toml "
                                  f"with a [{'], ['.join(SCENE_SECTIONS[1:])}] table)")
             found.extend(inside)
-        elif path.exists():
+        elif os.path.lexists(path):
             found.append(path)
         else:
-            raise InputError(f"scene {str(path)!r} does not exist")
+            raise InputError(f"scene {show(str(path))} does not exist")
     return found
 
 

@@ -5,24 +5,26 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
-from ecam.atomic_files import write_files
-from ecam.errors import InputError
+from ecam.atomic_files import check_outputs, write_files
+from ecam.errors import EcamError, InputError
 from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.scene import load_scene
 
 from .html_report import html_report
 from .junit import junit_xml
-from .multi import exit_status, run_scenes, summary_table
+from .multi import exit_status, run_scenes, scene_files, summary_table
 
 
 def run_sim(args: argparse.Namespace) -> int:
     """`ecam sim`: one scene prints its report (text or JSON); several run through :func:`sim_many`."""
     # one path that is not a directory is one scene, whatever its name (a bad path is then one
     # `ecam: error:` line, not a batch of one ERROR row)
-    single = len(args.scene) == 1 and not Path(args.scene[0]).is_dir()
+    # os.path.isdir never raises (Path.is_dir does, on a name longer than NAME_MAX)
+    single = len(args.scene) == 1 and not os.path.isdir(args.scene[0])
     if single and not (args.junit or args.html or args.jobs != 1):
         args.scene = args.scene[0]
         return sim_command(args)
@@ -37,7 +39,11 @@ def sim_command(args: argparse.Namespace) -> int:
             raise InputError(f"hil-sim sim: {len(path)} scenes given; it runs one "
                              "(`ecam sim` runs several)")
         path = path[0]
+    if not str(path):
+        raise InputError("scene '': should be a path (an empty argument names no file)")
     scene = load_scene(path)
+    if args.plot:  # before the run: never over the scene or its cam
+        check_outputs([args.plot], [path] + ([scene.cam.file] if scene.cam.file else []))
     if getattr(args, "fidelity", None):
         scene = scene.with_fidelity(args.fidelity)
     report = run_scene(scene, plot=args.plot)
@@ -94,9 +100,11 @@ def sim_many(args) -> int:
     if args.json or args.plot or args.find_max_speed:
         raise InputError("--json, --plot and --find-max-speed take one scene file; "
                          f"{len(args.scene)} scene argument(s) given")
-    for option in (args.junit, args.html):
-        if option is not None and not Path(option).resolve().parent.is_dir():
+    outputs = [option for option in (args.junit, args.html) if option is not None]
+    for option in outputs:  # os.path never raises (Path.resolve does on a symbolic link loop)
+        if not os.path.isdir(os.path.dirname(os.path.abspath(option))):
             raise InputError(f"output {option!r}: its directory does not exist")
+    check_outputs(outputs, scene_inputs(args.scene))
     results = run_scenes(args.scene, args.jobs,
                          progress=lambda line: print(line, file=sys.stderr),
                          fidelity=getattr(args, "fidelity", None))
@@ -107,7 +115,22 @@ def sim_many(args) -> int:
     if args.html:
         outputs[Path(args.html)] = html_report(results, timing=getattr(args, "timing", False))
     try:
-        write_files(outputs)
+        write_files(outputs, scene_inputs(args.scene))
     except OSError as exc:
         raise InputError(f"report files cannot be written: {exc.strerror or exc}") from None
     return exit_status(results)
+
+
+def scene_inputs(paths) -> list:
+    """The files `ecam sim` reads for ``paths``: each scene file and the cam file it names (a
+    scene that does not load names none; its error is its outcome)."""
+    inputs = []
+    for scene_path in scene_files(paths):
+        inputs.append(scene_path)
+        try:
+            cam_file = load_scene(scene_path).cam.file
+        except EcamError:
+            continue
+        if cam_file is not None:
+            inputs.append(cam_file)
+    return inputs

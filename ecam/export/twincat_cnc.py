@@ -63,6 +63,7 @@ from .certify import (
     EXPORT_VERSION, Cam, Hermite, Reading, VendorExport, certify, content_crc, positional, predicted,
     unreachable,
 )
+from .escape import line_comment
 from .table_files import identifier
 
 NAME = "twincat-cnc"
@@ -178,7 +179,7 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     values = "".join(f"{int(v)}\n" for v in entries)
     c = certificate
     lines = [
-        f"Tablename = {identifier(name)}  # ecam vendor export {EXPORT_VERSION} of cam '{cam.name}'; CRC-32 "
+        f"Tablename = {identifier(name)}  # ecam vendor export {EXPORT_VERSION} of cam '{line_comment(cam.name)}'; CRC-32 "
         f"0x{content_crc(values):08x} of the {count} value lines",
         "Table-ID = 1  # any ID no other table on the controller uses",
         f"Tabletype = {TABLETYPE}  # TABLE_ONE_COLUMN_SGN32: slave positions in 1e-4 {slave_kernel} "

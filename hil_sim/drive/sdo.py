@@ -209,6 +209,15 @@ class DriveSdoServer(SdoServer):
         """canopen's name for :meth:`_abort`."""
         self._abort(abort_code)
 
+    def reset(self) -> None:
+        """An NMT reset (node or communication): the transfer in progress ends without an
+        answer (the boot-up that follows tells the client), a download that had not reached its
+        object is reported refused, and the next segment is a request outside a transfer."""
+        if self._download_pending:
+            self._refused(ABORT_DEVICE_STATE, "download ended by an NMT reset before its last "
+                                              "segment")
+        self._idle()
+
     def _refused(self, code: int, message: str) -> None:
         self._on_refused(self._index, code, message)
 

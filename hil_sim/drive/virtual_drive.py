@@ -282,6 +282,9 @@ class VirtualDrive:
             self.pdo.send_event_tpdos()
 
     def _reset(self, kind: str) -> None:
+        # CiA 301: a reset node's SDO server starts afresh; a transfer in progress ends with it
+        # (its later segments are refused, never spliced onto it).
+        self.node.sdo.reset()
         if kind == "application":
             self._reset_application()
         else:

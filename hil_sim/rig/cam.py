@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import ecam
+from ecam.camfile import read_bounded
 from ecam.errors import InputError
 from ecam.profile import CamProfile
 from ecam.table import CamTable
@@ -42,8 +43,10 @@ def compile_cam(scene: Scene) -> CompiledCam:
     """Load and compile the scene's cam, once per cam content and table format."""
     spec = scene.cam
     try:
-        # The cam file's bytes, or an in-memory cam as the cam file it would write.
-        content = spec.profile.to_toml() if spec.profile is not None else spec.file.read_bytes()
+        # The cam file's bytes (read with the cam loader's bounds: a 2 GB file or /proc/kmsg is
+        # refused before it is hashed), or an in-memory cam as the cam file it would write.
+        content = (spec.profile.to_toml() if spec.profile is not None
+                   else read_bounded(spec.file, "cam file"))
         key = (content, spec.interp, spec.points, spec.tolerance, spec.master_counts,
                spec.slave_counts_per_unit)
     except (OSError, InputError):

@@ -35,7 +35,7 @@ import numpy as np
 
 from ecam.atomic_files import write_files
 from ecam.errors import InputError
-from ecam.plot import check_figure_path
+from ecam.plot import TEXT_AS_WRITTEN, check_figure_path
 from hil_sim.report import Report
 
 __all__ = ["plot_report", "figure_bytes", "report_figure", "period_index", "master_period",
@@ -483,9 +483,10 @@ def figure_bytes(report: Report, fmt: str = "png", dpi: int = 100,
     """
     import matplotlib
 
-    fig = report_figure(report, width_in=width_in)
     buffer = io.BytesIO()
-    with matplotlib.rc_context({"svg.hashsalt": "ecam", "pdf.compression": 6}):
+    # text from the scene and the cam (names, units) drawn as written, never as mathtext
+    with matplotlib.rc_context({"svg.hashsalt": "ecam", "pdf.compression": 6, **TEXT_AS_WRITTEN}):
+        fig = report_figure(report, width_in=width_in)
         fig.savefig(buffer, format=fmt, dpi=dpi, metadata=_NO_METADATA.get(fmt))
     if fmt != "png":
         return buffer.getvalue()

@@ -408,7 +408,9 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
         raise fail("cam", cam, "an ecam.CamProfile")
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
-                                              "limits", "duration"})
+                                              "limits", "duration", "sweep"})
+    # [sweep] describes a robustness sweep over this scene (hil_sim.sweep_spec, ecam sweep);
+    # a run of the scene itself ignores it.
     name = top.text("name", default=Path(source).stem)
     description = top.text("description", default="", maximum=MAX_DESCRIPTION_CHARS)
     cam_mode = top.choice("cam_mode", CAM_MODES, default="controller")

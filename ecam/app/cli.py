@@ -83,6 +83,12 @@ def _drive(args) -> int:
     return drive_command(args)
 
 
+def _sweep(args) -> int:
+    from .sweep_command import sweep_command
+
+    return sweep_command(args)
+
+
 def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the ``sim`` command."""
     parser.add_argument("scene", nargs="+",
@@ -198,6 +204,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--emit", metavar="DIR", required=True,
                    help="directory to write ecam_table.c, ecam_table.h and FORMAT.md into (created if missing)")
     p.set_defaults(func=_firmware)
+    p = sub.add_parser("sweep", help="robustness sweep of a scene over manufacturing spread, on Dask")
+    from .sweep_command import add_sweep_arguments
+
+    add_sweep_arguments(p)
+    p.set_defaults(func=_sweep)
     p = sub.add_parser("drive", help="run a virtual CiA 402 drive until interrupted")
     add_drive_arguments(p)
     p.set_defaults(func=_drive)

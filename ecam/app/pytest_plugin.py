@@ -48,7 +48,7 @@ from pathlib import Path
 import pytest
 
 __all__ = ["run_scene", "scene_for_run", "assert_passes", "assert_check", "assert_margin",
-           "SceneFailure"]
+           "assert_yield", "SceneFailure"]
 
 _RESULTS = pytest.StashKey[list]()
 _DIRS = pytest.StashKey[list]()
@@ -177,6 +177,58 @@ def assert_margin(report, name: str | None = None, share: float = 0.8) -> None:
                          f"the {100 * share:.3g} % allowed")
     if lines:
         raise AssertionError("\n".join(lines) + f"\nscene {report.scene}: {report.model_reason}")
+
+
+def assert_yield(report, check: str | None = None, at_least: float = 0.95, *,
+                 confident: bool = False) -> None:
+    """Fail unless a sweep's yield reaches ``at_least``: the share of its samples that passed
+    ``check`` (every check, when None) at its first judged speed.
+
+    Parameters
+    ----------
+    report : dict
+        A sweep summary (:func:`ecam.app.sweep.run_sweep`, or ``ecam sweep --json``).
+    check : str, optional
+        A check name; None for the whole verdict (``yield``).
+    at_least : float
+        The required yield, in (0, 1].
+    confident : bool
+        Require the lower end of the Wilson interval to reach ``at_least``, not the observed
+        share alone.
+
+    Raises
+    ------
+    AssertionError
+        The yield is lower: the message gives it, its interval and the worst sample.
+    KeyError
+        ``check`` is not a check of the sweep.
+    """
+    __tracebackhide__ = True
+    from ecam.errors import InputError
+    from ecam.statistics import wilson_interval
+
+    if isinstance(at_least, bool) or not isinstance(at_least, (int, float)) or not 0 < at_least <= 1:
+        raise InputError(f"at_least: {at_least!r} should be a number in (0, 1]")
+    samples = report["samples"]
+    if check is None:
+        passed, worst, what = report["passed"], report.get("worst_sample"), "every check"
+    else:
+        entry = next((c for c in report["checks"] if c["name"] == check), None)
+        if entry is None:
+            raise KeyError(f"sweep {report['scene']} has no check {check!r}; its checks: "
+                           f"{', '.join(c['name'] for c in report['checks'])}")
+        # samples that could not run count as failures of every check
+        passed, worst, what = samples - entry["failures"] - report["errors"], entry["worst"], check
+    if samples == 0:
+        raise AssertionError(f"sweep {report['scene']}: no sample ran")
+    low, high = wilson_interval(passed, samples, report.get("confidence", 0.95))
+    observed = passed / samples
+    if (low if confident else observed) < at_least:
+        raise AssertionError(
+            f"sweep {report['scene']}: yield of {what} {100 * observed:.3g} % ({passed} of "
+            f"{samples}; Wilson interval {100 * low:.3g} .. {100 * high:.3g} %) is below "
+            f"{100 * at_least:.3g} %" + ("" if not confident else " with confidence")
+            + ("" if worst is None else f"; worst sample #{worst['index']}: {worst.get('values')}"))
 
 
 def _named_check(report, name: str):

@@ -56,6 +56,10 @@ and a ``kind``:
   of the bench, raised, never a row).
 - ``"rig_search"``: find-max-speed on the scene: ``wall_s``, ``speed``, ``unit``,
   ``trials_fast``, ``trials_canopen``, ``limiting_check``, ``resolution``.
+- ``"sweep"``: samples per second of a robustness sweep of the scene (:mod:`.sweep`): ``how``,
+  ``workers``, ``samples``, ``wall_s``, ``samples_per_s``, ``steady_samples_per_s``,
+  ``cluster_s``; the quick run times the samples in this process, the full run on a
+  LocalCluster of 1 and 2 workers.
 - ``"target"``: ``name``, ``value``, ``relation``, ``limit``, ``met``, ``factor`` (value / limit),
   ``verdict`` (one line saying met or missed and by how much), ``detail``.
 - ``"note"``: ``text`` (the scale, the queries, what was skipped and why).

@@ -15,6 +15,7 @@ from .instructions import instruction_rows
 from .plan import MASTER_COUNTS, RIG_CYCLES_HZ, STROKE_COUNTS, bench_plan, bench_queries, plan_jobs
 from .plot import plot_pareto
 from .rig import bench_rig
+from .sweep import bench_sweep
 from .tables import LawContext, bench_table
 from .targets import evaluate_targets
 from .text import contract_rows, format_text
@@ -33,7 +34,7 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
     """
     plan = bench_plan(quick)
     jobs = plan_jobs(plan)
-    total = len(jobs) + len(RIG_CYCLES_HZ) + 1  # + the instruction counts
+    total = len(jobs) + len(RIG_CYCLES_HZ) + 1 + (1 if quick else 2)  # + instructions, sweeps
     done = 0
 
     def step():
@@ -95,6 +96,7 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
         rows += instruction_rows(counts, quick)
         step()
     rows += bench_rig(plan.rig_repeats, progress=step)
+    rows += bench_sweep(quick, progress=step)
     rows += evaluate_targets(rows)
     return [json_safe(row) for row in rows]
 

@@ -88,6 +88,7 @@ TARGET_TEXT = {
     "auto_bytes_vs_linear_at_1e-6": "auto <= 1/10 of the bytes of linear at 1e-6 of the stroke (worst cam)",
     "rig_real_time_factor_1khz": "rig >= 20x faster than real time at a 1 kHz cycle (whole run)",
     "rig_fast_path_real_time_factor_1khz": "the rig's bus-free path >= 100x real time at a 1 kHz cycle",
+    "sweep_1000_samples_s": "1000 samples of stiff_coupling at its nominal speed <= 120 s (2 workers, projected)",
 }
 
 

@@ -88,8 +88,9 @@ def spearman(x, y) -> float | None:
     if len(x) < 3:
         return None
     rx, ry = ranks(x) - (len(x) + 1) / 2.0, ranks(y) - (len(y) + 1) / 2.0
-    norm = math.sqrt(float(rx @ rx) * float(ry @ ry))
-    return None if norm == 0.0 else float(rx @ ry) / norm
+    # elementwise products and numpy's pairwise sum, not a BLAS dot: the same bits everywhere
+    norm = math.sqrt(float(np.sum(rx * rx)) * float(np.sum(ry * ry)))
+    return None if norm == 0.0 else float(np.sum(rx * ry)) / norm
 
 
 def rank_sensitivity(names, values, output) -> list[dict]:

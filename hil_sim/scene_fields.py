@@ -100,6 +100,9 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("", "bus", "table", "The `[bus]` table.", default_text="the defaults below"),
     Field("", "limits", "table", "The `[limits]` table.", default=REQUIRED),
     Field("", "duration", "table", "The `[duration]` table.", default=REQUIRED),
+    Field("", "sweep", "table", "A robustness sweep over manufacturing spread, read by `ecam sweep` "
+          "(hil_sim.sweep_spec; its fields in docs/sweep.md); a run of the scene ignores it.",
+          default_text="no sweep", source="hil_sim.sweep_spec"),
 
     Field("master", "speed", "number", "The cruise speed.", unit="master units/s",
           default_text="give exactly one of speed and speed_rpm", minimum=-MAX_MASTER_SPEED,

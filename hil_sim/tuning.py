@@ -203,10 +203,14 @@ class LoopModel:
         Encoder and speed filter, computation delay (the current loop is in ``plant``).
     modes_hz : tuple of float
         The plant's torsional modes [Hz] (notch candidates).
+    frequencies : array_like, optional
+        Where to evaluate the responses [Hz]; default a log grid up to the Nyquist frequency,
+        refined at the modes.
     """
 
     def __init__(self, plant: Plant, inertia: float, drive_effects: DriveEffects,
-                 modes_hz: tuple = ()) -> None:
+                 modes_hz: tuple = (), frequencies=None) -> None:
+        self._arguments = (plant, inertia, drive_effects, modes_hz)
         self.dt = dt = plant.dt
         self.phi = np.array(plant.phi)
         self.gamma = np.array(plant.gamma)
@@ -218,7 +222,8 @@ class LoopModel:
                             if self.encoder else None)
         self.modes_hz = tuple(f for f in modes_hz if math.isfinite(f))
         self.nyquist_hz = 0.5 / dt
-        self.frequencies = _grid(self.nyquist_hz, self.modes_hz)
+        self.frequencies = (_grid(self.nyquist_hz, self.modes_hz) if frequencies is None else
+                            np.asarray(frequencies, dtype=float))
         self.z = np.exp(2j * math.pi * self.frequencies * dt)
         n = self.phi.shape[0]
         # P(z) = (zI - Phi)^-1 Gamma at every frequency: rows 0 (angle) and 1 (speed)
@@ -232,6 +237,14 @@ class LoopModel:
             inverse = 1.0 / self.z
             speed = a * (1.0 - inverse) / dt / (1.0 - (1.0 - a) * inverse) * self.angle
         self.speed = speed  # the speed estimate's response to the applied torque
+
+    def at(self, frequencies) -> "LoopModel":
+        """The same loop evaluated at ``frequencies`` [Hz]."""
+        return LoopModel(*self._arguments, frequencies=frequencies)
+
+    def cascade(self, gains: Gains) -> np.ndarray:
+        """L = C N D (P_omega + kp P_theta): the whole cascade broken at the torque."""
+        return self.controller(gains) * (self.speed + gains.position_kp * self.angle)
 
     # ---------------------------------------------------------------- responses
     def controller(self, gains: Gains) -> np.ndarray:

@@ -31,6 +31,9 @@ _DEFAULT_COUNTS_PER_MOTOR_RAD = 2**20 / (2.0 * math.pi)  # a 20-bit single-turn 
 #: Time constant of the acceleration feed-forward's low-pass when it is derived from the targets
 #: alone [s]: a second difference of integer targets is noise that grows with the cycle rate.
 TARGET_ACCELERATION_FILTER_S = 1e-3
+#: Below this speed reference [rad/s, motor side] the friction feed-forward is proportional to
+#: it (full beyond; AX2000 VSTFR): about 1 rpm, so that it does not chatter at a reversal.
+FRICTION_BAND = 0.1
 
 
 def _non_negative(field: str, value: object) -> float:
@@ -53,12 +56,27 @@ class DriveEffects:
     computation_delay : bool
         The torque computed from one period's samples is applied in the next period (a drive
         samples, computes, then writes its PWM), instead of at once.
+    speed_symmetrization : bool
+        The speed reference the PI compares with the speed estimate passes the estimate's own
+        lag first (half a period of the difference quotient, then the speed filter's first
+        order), so that the PI does not fight the feed-forward over the estimate's delay (a
+        drive's speed precontrol balancing: SINAMICS S120/S150 List Manual, p1428 "speed
+        precontrol balancing dead time" and p1429 "... time constant"; Beckhoff TF5200
+        P-AXIS-00361, the setpoint filter time constant for feed-forward symmetrization; both 0,
+        i.e. off, by default). No effect with ideal feedback, which has no lag.
+    friction_feedforward : float
+        Coulomb friction torque fed forward [N m], >= 0, signed by the speed reference and
+        proportional to it within :data:`FRICTION_BAND` (the curve of the Beckhoff AX2000's
+        ISTFR/VSTFR friction compensation, ASCII object 0x36A4); 0: none, as drives ship it
+        (ISTFR default 0; Beckhoff TF5200 P-AXIS-00522, friction compensation, default 0).
     """
 
     encoder_counts_per_rev: int | None = None
     velocity_filter_hz: float = 2000.0
     current_loop_hz: float | None = None
     computation_delay: bool = False
+    speed_symmetrization: bool = False
+    friction_feedforward: float = 0.0
 
     def __post_init__(self) -> None:
         if self.encoder_counts_per_rev is not None:
@@ -72,6 +90,10 @@ class DriveEffects:
                                positive("current_loop_hz", plain(self.current_loop_hz)))
         if not isinstance(self.computation_delay, bool):
             raise fail("computation_delay", self.computation_delay, "true or false")
+        if not isinstance(self.speed_symmetrization, bool):
+            raise fail("speed_symmetrization", self.speed_symmetrization, "true or false")
+        object.__setattr__(self, "friction_feedforward",
+                           _non_negative("friction_feedforward", self.friction_feedforward))
 
 
 @dataclass(frozen=True)
@@ -281,6 +303,12 @@ class ServoAxis:
             self.feedback = Encoder(drive_effects.encoder_counts_per_rev,
                                     drive_effects.velocity_filter_hz, self.dt)
         self._delay = drive_effects.computation_delay
+        # the speed reference through the estimate's lag (symmetrization): its filter's gain
+        self._symmetrize = (drive_effects.speed_symmetrization
+                            and drive_effects.encoder_counts_per_rev is not None)
+        self._symmetric_gain = 1.0 - math.exp(-2.0 * math.pi * drive_effects.velocity_filter_hz
+                                              * self.dt)
+        self._friction_ff = drive_effects.friction_feedforward
         # A notch at or above the controller's Nyquist frequency cannot be run (a drive's
         # tuning tool refuses it): none then, e.g. while 0x60C2 still holds its power-on value.
         self._notch = (Notch(gains.notch_hz, gains.notch_width, gains.notch_depth_db, self.dt)
@@ -314,6 +342,7 @@ class ServoAxis:
         self._offset = 0.0  # last velocity offset [rad/s]
         self._integral = 0.0  # integral of the speed error [rad]
         self._pending = 0.0  # torque computed, to be applied next period (computation delay)
+        self._symmetric = speed  # the speed reference through the estimate's lag [rad/s]
 
     # ------------------------------------------------------------------ cycle
     def cycle(self, target_counts: int, velocity_offset_counts_per_s: float = 0.0) -> None:
@@ -392,6 +421,9 @@ class ServoAxis:
         dt = self.dt
         v0, v1 = speed_command
         t0, t1 = torque_ff
+        symmetrize, symmetric, gain = self._symmetrize, self._symmetric, self._symmetric_gain
+        half = 0.5 * dt
+        friction = self._friction_ff
         peak_torque = peak_coupling = peak_twist = 0.0
         saturated = False
         for i in range(self.substeps):
@@ -404,8 +436,19 @@ class ServoAxis:
             if limited and correction * correction > catch_up * abs(position_error):
                 correction = math.copysign(math.sqrt(catch_up * abs(position_error)),
                                            position_error)
-            speed_error = correction + v0 + v1 * s - speed
+            reference = v0 + v1 * s
+            if symmetrize:
+                # the estimate is the filtered mean speed of the last period, i.e. of half a
+                # period ago: the reference passes the same dead time and filter
+                symmetric += gain * (reference - half * v1 - symmetric)
+                speed_error = correction + symmetric - speed
+            else:
+                speed_error = correction + reference - speed
             wanted = kv * speed_error + ki * integral + t0 + t1 * s
+            if friction:
+                # Coulomb friction opposes the motion the reference asks for; linear within
+                # FRICTION_BAND so the torque does not chatter at a reversal
+                wanted += friction * max(-1.0, min(1.0, reference / FRICTION_BAND))
             if notch is not None:
                 wanted = notch(wanted)
             if wanted > limit:
@@ -432,6 +475,7 @@ class ServoAxis:
             if twist > peak_twist or -twist > peak_twist:
                 peak_twist = abs(twist)
         self._measured = (angle, speed)
+        self._symmetric = symmetric
         self._pending = pending
         self._integral = integral
         self._peaks = (peak_torque, peak_coupling, peak_twist)
@@ -466,6 +510,7 @@ class ServoAxis:
         self._acceleration = 0.0
         self._offset = 0.0
         self._integral = 0.0
+        self._symmetric = 0.0
 
     # ------------------------------------------------------------- read-outs
     def _motor_counts(self) -> int:

@@ -41,6 +41,8 @@ Layout (units in the names or below; SI unless said otherwise)::
     velocity_filter_hz = 1000.0        # the speed estimate's low-pass
     current_loop_bandwidth_hz = 1000.0 # 0 = ideal torque
     computation_delay = true           # one controller period
+    speed_symmetrization = false       # the speed reference through the estimate's lag
+    friction_feedforward = false       # Coulomb friction fed forward (hil_sim.control)
     [drive.gains]                      # optional: bandwidths and/or raw gains
     velocity_bandwidth_hz = 200.0
 
@@ -229,6 +231,8 @@ class DriveSpec:
     gains: tuple[tuple[str, float], ...] = ()
     feedforward: str = "offset"
     effects: tuple[tuple[str, float | bool], ...] = ()
+    speed_symmetrization: bool = False
+    friction_feedforward: bool = False
 
     @property
     def control_rate_hz(self) -> float:
@@ -508,7 +512,8 @@ def _cam_file(raw: Fields, written: str, base: Path) -> Path:
 
 def _drive(top: Fields) -> DriveSpec:
     raw = top.table("drive", {"node_id", "cycle_s", "substeps", "following_error_window",
-                              "model", "gains", "feedforward", *DRIVE_FIELDS})
+                              "model", "gains", "feedforward", "speed_symmetrization",
+                              "friction_feedforward", *DRIVE_FIELDS})
     gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
     gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
@@ -529,7 +534,12 @@ def _drive(top: Fields) -> DriveSpec:
         model=raw.choice("model", MODELS, default="auto"),
         gains=gains,
         feedforward=raw.choice("feedforward", FEEDFORWARD_SOURCES, default="offset"),
-        effects=_drive_effects(raw))
+        effects=_drive_effects(raw),
+        # both off by default, as drives ship them (SINAMICS p1428/p1429 = 0, Beckhoff
+        # P-AXIS-00361 = 0; hil_sim.control.DriveEffects), and as measured on the shipped scenes
+        # (docs/tuning.md): neither lowers every scene's tracking error
+        speed_symmetrization=raw.boolean("speed_symmetrization", default=False),
+        friction_feedforward=raw.boolean("friction_feedforward", default=False))
 
 
 def _drive_effects(raw: Fields) -> tuple:

@@ -188,6 +188,12 @@ SCENE_FIELDS: tuple[Field, ...] = (
           source=_EFFECTS),
     Field("drive", "computation_delay", "boolean", "One controller period between sampling and "
           "the applied torque.", default=True, source=_EFFECTS),
+    Field("drive", "speed_symmetrization", "boolean", "The speed reference passes the speed "
+          "estimate's own lag before the PI compares them (speed precontrol balancing).",
+          default=False, source="hil_sim.control (DriveEffects; SINAMICS p1428/p1429 default 0)"),
+    Field("drive", "friction_feedforward", "boolean", "Feed the machine's Coulomb friction "
+          "forward, signed by the speed reference.", default=False,
+          source="hil_sim.control (DriveEffects; Beckhoff AX2000 ISTFR default 0)"),
 
     *(Field("drive.gains", key, "number", text, unit=unit, default=default, default_text=default_text,
             minimum=0.0, limits=limits, source=source)

@@ -144,10 +144,25 @@ def axis_setup(run: PreparedRun, included) -> AxisSetup:
     """The drive's axis with the ``included`` effects on (:meth:`EffectValues.build`)."""
     scene = run.scene
     model, plant_effects, drive_effects = run.effect_values.build(included)
+    drive_effects = replace(drive_effects, speed_symmetrization=scene.drive.speed_symmetrization,
+                            friction_feedforward=friction_feedforward(run))
     return AxisSetup(run.mechanics, run.gains, substeps=scene.drive.substeps,
                      counts_per_motor_rad=_counts_per_motor_rad(scene, run.cam, run.mechanics),
                      model=model, excitation_hz=run.excitation_hz, plant_effects=plant_effects,
                      drive_effects=drive_effects, feedforward=scene.drive.feedforward)
+
+
+def friction_feedforward(run: PreparedRun) -> float:
+    """The Coulomb friction the drive feeds forward [N m at the motor] with ``[drive]
+    friction_feedforward = true``: the machine's, as commissioning identifies it (the full
+    model's motor friction and the load's through the gear, F_m + F_L r / eta), whatever the
+    run's fidelity models; 0 when off."""
+    if not run.scene.drive.friction_feedforward:
+        return 0.0
+    values, m = run.effect_values, run.mechanics
+    motor = values["motor_coulomb_friction"].value or 0.0
+    load = values["load_coulomb_friction"].value or 0.0
+    return motor + load * m.gear_ratio / m.gear_efficiency
 
 
 #: Whole cam periods at cruise speed the effects are measured over (after the master got there

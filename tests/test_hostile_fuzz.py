@@ -12,9 +12,11 @@ sign of a non-finite number) or an unbounded message.
 
 import contextlib
 import copy
+import csv
 import datetime
 import io
 import math
+import re
 import tomllib
 import warnings
 from pathlib import Path
@@ -82,6 +84,9 @@ HOSTILE = [0.0, -0.0, -1.0, 5e-324, 1e-300, 1e-9, 1e150, 1.5e150, 1e300, 1.79769
            -math.inf, math.nan, 0, -1, 1, 2, 2**31, 2**31 + 1, 2**53 + 1, 2**63, 2**64, -(2**63) - 1, 10**30, 10**400,
            "", "x" * 100_000, "match", "dwell", "poly5", "2 counts", "nan counts", "-1 counts", "1e-300 counts",
            "auto", "quintic", "é\u202e\U0001F600", "\x00", "/dev/zero", "../../etc/passwd", True, False, [], {},
+           # issue 28: markup and comment syntax of the outputs, control characters, line separators
+           "$$", "$x^$", "\\alpha", "*)\nVAR_GLOBAL injected : INT := 1; END_VAR\n(* x\n1,2\n3,4", "*) (* /* // #",
+           "a,b\"c", "a\u2028b", "\x1b[31m", "a\tb", "<x>&amp;",
            [1, "a"], list(range(10_000)), [[[[]]]], {"a": {"b": []}}, datetime.date(1970, 1, 1),
            datetime.datetime(2000, 1, 1, 12, 30)]
 
@@ -296,3 +301,127 @@ def test_scene_defects_the_fuzz_found_are_one_line(workdir, name, path, value, e
     status, out, err, runtime_warnings = run(["sim", scene, "--json"])
     assert status == 2 and len(err.splitlines()) == 1 and not runtime_warnings, err
     assert expected in err, err
+
+
+# --- names and units: control characters and the outputs' markup (issue 28) ---------------------
+# Text a name or a unit may hold, and text that breaks one of the places they go: a comment of
+# IEC 61131-3 source, a CSV header, an ISG table's '#' comment, matplotlib's mathtext, XML, a
+# terminal line.
+TEXTS = st.one_of(
+    st.sampled_from(["$$", "$x^$", "\\alpha$", "*)", "(*", "/*", "*/", "//", "#", ",", '"', "a,b\"c",
+                     "*) VAR_GLOBAL injected : INT := 1; END_VAR (*", "\x00", "\n", "\r\n", "\x1b[2J",
+                     "\u2028", "\u0085", "\u202e", "\t", "<![CDATA[", "&", "é\U0001F600", "x" * 300]),
+    st.text(max_size=12),
+)
+
+
+def iec_code(text: str) -> str:
+    from test_hostile_inputs import iec_code as strip
+
+    return strip(text)
+
+
+def assert_export_intact(to: str, text: str) -> None:
+    """The export's structure is the one it writes for any cam: the user's text stayed inside
+    the places meant for it."""
+    if to == "codesys":
+        code = iec_code(text)
+        assert code.count("VAR_GLOBAL") == 1 and code.count("END_VAR") == 1 and ":=" in code, code[:500]
+        assert re.fullmatch(r"\s*VAR_GLOBAL\s+\w+ : ARRAY\[0\.\.\d+\] OF SMC_CAMXYVA := \[.*\];\s*\w+ : MC_CAM_REF := "
+                            r"\(.*\);\s*END_VAR\s*", code, flags=re.S), code[:500]
+    elif to == "csv":
+        rows = list(csv.reader(line for line in text.splitlines() if not line.startswith("#")))
+        assert len({len(row) for row in rows}) == 1, rows[:3]
+    elif to == "twincat-cnc":
+        keys = [line.split("#")[0].split("=")[0].strip() for line in text.splitlines() if "=" in line.split("#")[0]]
+        assert keys == ["Tablename", "Table-ID", "Tabletype", "Functiontype", "Lines"], keys
+
+
+@settings(max_examples=30, **FUZZ)
+@given(st.data())
+def test_hostile_names_and_units(workdir, data):
+    """The polynomial cam with drawn names and units through check, compile (every format),
+    every vendor export and plot: one line, or outputs whose structure holds."""
+    document = copy.deepcopy(CAM_BASES[-1])
+    document["table"]["tolerance"] = 0.001
+    for key in ("name", "master_unit", "slave_unit"):
+        if data.draw(st.booleans(), label=f"set {key}"):
+            document[key] = data.draw(TEXTS, label=key)
+    for segment in document["segment"]:
+        if data.draw(st.booleans(), label="segment name"):
+            segment["name"] = data.draw(TEXTS, label="segment name")
+    text = to_toml(document)
+    path = workdir / "names.toml"
+    path.write_text(text, encoding="utf-8")
+    if assert_clean(["check", path], text) == 2:
+        return
+    out = workdir / "names_out"
+    assert_clean(["compile", path, "-o", out, "--format", ",".join(sorted(TABLE_FORMATS))], text)
+    for to in VENDOR_FORMATS:
+        target = workdir / f"names.{to}.txt"
+        target.unlink(missing_ok=True)
+        if assert_clean(["export", path, "--to", to, "-o", target], text) == 0:
+            assert_export_intact(to, target.read_text(encoding="utf-8"))
+    if data.draw(st.booleans(), label="plot"):
+        assert_clean(["plot", path, "-o", workdir / "names.svg"], text)
+
+
+# --- device and input paths as outputs (issue 28) -----------------------------------------------
+def output_targets(base: Path, cam: Path) -> dict:
+    """Paths an output may be pointed at, each made afresh: what must survive, what may be written."""
+    import os
+    import shutil
+
+    if base.exists():
+        shutil.rmtree(base)
+    base.mkdir()
+    os.mkfifo(base / "fifo")
+    (base / "precious.txt").write_text("precious")
+    (base / "to_fifo.svg").symlink_to(base / "fifo")
+    (base / "to_stream.svg").symlink_to("/proc/self/fd/1")
+    (base / "to_precious.svg").symlink_to(base / "precious.txt")
+    (base / "dangling.svg").symlink_to(base / "nowhere")
+    (base / "loop_a.svg").symlink_to(base / "loop_b.svg")
+    (base / "loop_b.svg").symlink_to(base / "loop_a.svg")
+    os.link(cam, base / "hard_link_to_cam.svg")
+    (base / "dir.svg").mkdir()
+    return {
+        "new": base / "new.svg", "cam": cam, "cam relative": Path(os.path.relpath(cam)),
+        "cam through ..": cam.parent / ".." / cam.parent.name / cam.name, "hard link": base / "hard_link_to_cam.svg",
+        "fifo": base / "fifo", "link to fifo": base / "to_fifo.svg", "link to stream": base / "to_stream.svg",
+        "link to file": base / "to_precious.svg", "dangling link": base / "dangling.svg",
+        "loop": base / "loop_a.svg", "directory": base / "dir.svg", "long": base / ("x" * 300 + ".svg"),
+        "under a file": base / "precious.txt" / "x.svg",
+    }
+
+
+@settings(max_examples=40, **FUZZ)
+@given(st.data())
+def test_hostile_output_paths_never_destroy(workdir, data):
+    """An output pointed at a device, a FIFO, a link to a stream, a loop, a directory, an overlong
+    name or the input itself: one line, and every one of them as it was; a new path, a dangling
+    link or a link to a regular file is written (the link replaced, its target untouched)."""
+    import os
+    import stat as stat_module
+
+    cam = workdir / "out_cam.toml"
+    cam.write_text(to_toml(CAM_BASES[-1] | {"name": "out_cam"}), encoding="utf-8")
+    before = cam.read_bytes()
+    targets = output_targets(workdir / "targets", cam)
+    which = data.draw(st.sampled_from(sorted(targets)), label="target")
+    target = targets[which]
+    command = data.draw(st.sampled_from(["export", "plot"]), label="command")
+    if command == "export":
+        args = ["export", cam, "--to", "csv", "--tolerance", "0.001", "-o", target]
+    else:
+        args = ["plot", cam, "-o", target]
+    status = assert_clean(args, f"{command} -o {which}")
+    assert cam.read_bytes() == before, which
+    base = workdir / "targets"
+    assert stat_module.S_ISFIFO(os.lstat(base / "fifo").st_mode)
+    assert os.readlink(base / "to_stream.svg") == "/proc/self/fd/1"
+    assert (base / "precious.txt").read_text() == "precious"
+    assert (base / "dir.svg").is_dir()
+    if which in ("cam", "cam relative", "cam through ..", "hard link", "fifo", "link to fifo", "link to stream",
+                 "loop", "directory", "long", "under a file"):
+        assert status == 2, which

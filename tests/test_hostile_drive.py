@@ -265,3 +265,110 @@ peer.shutdown()
     assert run.returncode == 0, run.stderr
     assert run.stdout.split("\n")[:4] == ["boot-up True", "heartbeat True", "sdo 92010200", "exit 0"], \
         run.stdout + run.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# Item 7: a large table is verified off the real-time path
+
+def _table(points: int, interp: str = "linear") -> ecam.CamTable:
+    return ecam.compile_table(ecam.load_cam(CAMS / "combination_drrd.toml"), interp=interp, points=points,
+                              master_counts=2**20, slave_counts_per_unit=100000)
+
+
+def test_a_table_being_verified_stops_neither_sync_nor_sdo(session, monkeypatch):
+    """The verification is held until the test releases it: meanwhile the download has been
+    answered, SYNCs run cycles, the SDO server answers (0x2001:02 says VERIFYING) and an
+    activation is refused (0x08000022); released, the table is pending and activates. Before,
+    the verification ran inside the SDO handler, the drive's lock held, for seconds at the
+    largest legal table."""
+    from hil_sim.drive import cam_slot
+
+    table = _table(2**12 + 1)
+    release, threads = threading.Event(), []
+    real_from_bytes = ecam.CamTable.from_bytes
+
+    def held_from_bytes(data):
+        threads.append(threading.current_thread())
+        release.wait()
+        return real_from_bytes(data)
+
+    monkeypatch.setattr(cam_slot, "BACKGROUND_VERIFY_BYTES", 0)
+    monkeypatch.setattr(cam_slot.CamTable, "from_bytes", held_from_bytes)
+    session.boot()
+    session.drive.cam.background = True  # as the drive serving an external master sets it
+    session.enable_csp()
+    sdo = session.node.sdo
+    try:
+        sdo.download(0x2000, 0, table.to_bytes())  # answered although the verification waits
+        session.sync(5)
+        assert session.drive.cycles == 5
+        assert sdo[0x2001][2].raw & cam_slot.CAM_STATUS_VERIFYING
+        with pytest.raises(canopen.SdoAbortedError) as error:
+            sdo[0x2001][1].raw = 1
+        assert error.value.code == 0x08000022
+    finally:
+        release.set()
+        session.drive.cam.worker.join()
+    assert threads and threads[0] is not threading.main_thread()
+    status = sdo[0x2001][2].raw
+    assert status & cam_slot.CAM_STATUS_PENDING and not status & cam_slot.CAM_STATUS_VERIFYING
+    sdo[0x2001][1].raw = 1
+    assert session.drive.active_table.crc32 == table.crc32
+
+
+def test_a_bad_large_table_is_refused_by_the_worker_and_a_later_download_wins(session, monkeypatch):
+    from hil_sim.drive import cam_slot
+
+    monkeypatch.setattr(cam_slot, "BACKGROUND_VERIFY_BYTES", 0)
+    session.boot()
+    session.drive.cam.background = True
+    sdo = session.node.sdo
+    bad = bytearray(_table(2**10 + 1).to_bytes())
+    bad[-1] ^= 0xFF  # the payload's CRC no longer matches
+    sdo.download(0x2000, 0, bytes(bad))
+    session.drive.cam.worker.join()
+    assert sdo[0x2001][2].raw & cam_slot.CAM_STATUS_LAST_DOWNLOAD_REFUSED
+    assert sdo[0x2001][3].raw == 0x08000020
+    with pytest.raises(canopen.SdoAbortedError) as error:
+        sdo[0x2001][1].raw = 1
+    assert error.value.code == 0x08000022
+    good = _table(2**10 + 1, "cubic")
+    sdo.download(0x2000, 0, good.to_bytes())
+    session.drive.cam.worker.join()
+    sdo[0x2001][1].raw = 1
+    assert session.drive.active_table.crc32 == good.crc32
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_large_legal_tables_are_verified_by_a_worker(session, seed):
+    """Seeded: legal tables of 2^12+1 .. 2^16+1 points (up to 786 kB) downloaded to a drive that
+    serves on its own thread: each is verified on a worker (never on the thread that handles the
+    frames), is pending with its CRC, and activates; SYNC cycles run while it is verified."""
+    import random
+
+    from hil_sim.drive import cam_slot
+
+    rng = random.Random(2026 + seed)
+    table = _table(2 ** rng.randint(12, 16) + 1, rng.choice(["linear", "cubic", "quintic"]))
+    blob = table.to_bytes()
+    session.boot()
+    session.drive.cam.background = True
+    session.enable_csp()
+    seen = []
+    real = ecam.CamTable.from_bytes
+    cam_slot_table = cam_slot.CamTable
+    try:
+        cam_slot.CamTable = type("Recording", (), {"from_bytes": staticmethod(
+            lambda data: seen.append(threading.current_thread()) or real(data))})
+        session.drive.cam.verify_download(blob)
+        session.sync(3)
+        if session.drive.cam.worker is not None:
+            session.drive.cam.worker.join()
+    finally:
+        cam_slot.CamTable = cam_slot_table
+    assert session.drive.cycles == 3
+    if len(blob) > cam_slot.BACKGROUND_VERIFY_BYTES:
+        assert seen and seen[0] is not threading.main_thread()
+    assert session.drive.pending_table.crc32 == table.crc32
+    session.node.sdo[0x2001][1].raw = 1
+    assert session.drive.active_table.crc32 == table.crc32

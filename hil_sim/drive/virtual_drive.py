@@ -126,7 +126,7 @@ class VirtualDrive:
         self.od = load_od(eds or EDS_PATH, node_id)
         self.node = DriveNode(node_id, self.od)
         self.objects = StoredObjects(self.node)
-        self.cam = CamSlot(self.values)
+        self.cam = CamSlot(self.values, locked=self._locked)
         self.nmt = NmtSlave(self.network, node_id, self._now, self._reset, self._nmt_entered)
         self.defects = 0  # exceptions that escaped a handler (each logged, each a fault)
         self.runner = Runner(bus, own_bus, self.network, self._on_idle,
@@ -449,9 +449,15 @@ class VirtualDrive:
         self.runner.start(self._boot_on_wall_clock)
 
     def _boot_on_wall_clock(self) -> None:
-        # An external master runs on real time: heartbeats and frame stamps follow it.
+        # An external master runs on real time: heartbeats and frame stamps follow it, and a
+        # large table is verified off the serving thread (CamSlot).
         self._wall_clock = True
+        self.cam.background = True
         self.boot()
+
+    def _locked(self, function) -> None:
+        with self.runner.lock:
+            function()
 
     def stop(self) -> None:
         """Stop the thread of :meth:`start` and release the bus if the drive opened it."""

@@ -16,8 +16,9 @@ from ecam.errors import EcamError, InputError
 from ecam.table import INTERPOLATIONS
 from hil_sim.effects import FIDELITIES
 
-from . import cam_commands
+from . import cam_commands, join_command
 from .drive_command import INTERFACES
+from .transition_command import add_transition_parser
 
 EXIT_BAD_INPUT = 2
 
@@ -126,6 +127,18 @@ def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
                              "small servo on a rigid load)")
 
 
+def add_join_arguments(parser: argparse.ArgumentParser) -> None:
+    """`ecam check A --then B`: the switch from A to B at A's period end (PLCopen coordinates)."""
+    parser.add_argument("--then", metavar="CAM", help="check instead the switch to this cam at the first "
+                                                      "cam's period end (default: the cam alone)")
+    parser.add_argument("--master", choices=("absolute", "relative"),
+                        help="with --then: the next cam's master coordinates, PLCopen MC_CamTableSelect."
+                             "MasterAbsolute (default: absolute)")
+    parser.add_argument("--slave", choices=("absolute", "relative"),
+                        help="with --then: the next cam's slave coordinates, PLCopen MC_CamTableSelect."
+                             "SlaveAbsolute (default: absolute)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="ecam", description="Electronic cams: motion laws, certified cam tables, a CANopen rig.",
                      epilog="Exit status: 0 success, 1 a check failed, 2 bad input (one line on stderr). "
@@ -144,7 +157,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", metavar="SPEED",
                    help="also give the peaks at this master speed: master units per second, or e.g. "
                         "'720 deg/s', '120 periods/min', '120 rpm'")
-    p.set_defaults(func=cam_commands.cmd_check)
+    add_join_arguments(p)
+    p.set_defaults(func=join_command.cmd_check)
+
+    add_transition_parser(sub)
 
     p = sub.add_parser("plot", help="motion diagram: position, velocity, acceleration, jerk")
     p.add_argument("cam")

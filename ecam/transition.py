@@ -27,6 +27,7 @@ import numpy as np
 import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .cam_join import COORDINATES
 from .errors import InputError
+from .linear import solve_exact
 from .profile import CamProfile, Segment, check_master_period, dwell
 
 __all__ = ["transition_cam"]
@@ -132,7 +133,7 @@ def _poly7_coefficients(span: float, start: list, end: list) -> np.ndarray:
                 row[k] = math.perm(k, order) * at ** (k - order)
             rows.append(row)
             values.append(state[order] * span**order)
-    return np.linalg.solve(np.array(rows), np.array(values))
+    return np.array(solve_exact(rows, values))  # no LAPACK: the same bits on every CPU
 
 
 def _state(coefficients: np.ndarray, u: float, span: float) -> list:

@@ -23,6 +23,7 @@ import json
 import logging
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -245,8 +246,12 @@ def open_client(workers: int | None = None, scheduler: str | None = None):
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"--scheduler: {scheduler!r} cannot be reached: "
                              f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.CRITICAL)
+    with warnings.catch_warnings():
+        # Without a dashboard the scheduler still serves /health over HTTP, on 8787 or, when
+        # another cluster holds it, on a free port with a warning: no business of the sweep's.
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 
@@ -563,9 +568,10 @@ def format_summary(summary: dict) -> str:
         worst = c["worst"]
         text = f"  {c['name']}: fails {_percent(c['failure_rate'])} ({c['failures']})"
         if worst is not None and worst["value"] is not None:
-            text += f", worst #{worst['index']} {worst['value']:.6g} {c['unit']}"
+            unit = f" {c['unit']}" if c["unit"] else ""
+            text += f", worst #{worst['index']} {worst['value']:.6g}{unit}"
             if worst["limit"] is not None:
-                text += f" against {worst['limit']:.6g}"
+                text += f" against {worst['limit']:.6g}{unit}"
         lines.append(text)
     sens = summary["sensitivity"]
     lines.append(f"sensitivity ({sens['method']}, of {sens['output']}):")

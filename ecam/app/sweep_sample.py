@@ -27,7 +27,8 @@ def run_sample(task: dict) -> dict:
     -------
     dict
         ``index``, ``speed_index``, ``passed``, ``checks`` (``name``, ``value``, ``limit``,
-        ``passed``, ``unit``, as in the report's JSON), ``error`` (one line, or None) and
+        ``passed``, ``unit``, as in the report's JSON), ``tuning`` (the sample's gains and
+        margins, where the report has a ``tuning`` object), ``error`` (one line, or None) and
         ``seconds`` (wall time).
     """
     from hil_sim.rig import run_scene
@@ -41,14 +42,23 @@ def run_sample(task: dict) -> dict:
         scene = scene.with_master_speed(task["speed"]).with_fidelity(task["fidelity"])
         report = run_scene(scene, path="fast")
         out["passed"] = report.passed
+        data = report.to_dict()
         out["checks"] = [{key: c[key] for key in ("name", "value", "limit", "passed", "unit")}
-                         for c in (check.to_dict() for check in report.checks)]
+                         for c in data["checks"]]
+        tuning = data.get("tuning")
+        if isinstance(tuning, dict):  # the sample's commissioning, where the rig reports one
+            out["tuning"] = {key: tuning[key] for key in _TUNING_KEYS if key in tuning}
     except EcamError as exc:
         out["error"] = _one_line(str(exc))
     except Exception as exc:  # a defect in the rig: this sample errors, the sweep goes on
         out["error"] = _one_line(f"the rig crashed: {type(exc).__name__}: {exc}")
     out["seconds"] = time.perf_counter() - start
     return out
+
+
+#: What a sample's result keeps of its report's ``tuning`` object.
+_TUNING_KEYS = ("source", "velocity_kp", "velocity_ki", "position_kp", "notch_hz",
+                "phase_margin_deg", "gain_margin_db", "sensitivity_peak")
 
 
 def _one_line(text: str) -> str:

@@ -527,7 +527,7 @@ def test_html_report_content(results, scene_dir, page):
             assert f"<code>{check_.name}</code>" in body
         assert html.escape(report.model_reason) in body
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', page)
-    assert len(images) == 2
+    assert len(images) == 4  # each scene's figure and its open-loop Bode plot (issue 20)
     assert all(base64.b64decode(data)[:8] == PNG_MAGIC for data in images)
     assert "Over the master position [deg]" in body
     assert html.escape((scene_dir / "b_soft.toml").read_text().splitlines()[0]) in body

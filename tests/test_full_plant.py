@@ -278,7 +278,7 @@ def test_stiff_coupling_friction_converges_to_the_64x_sub_stepped_plant(monkeypa
     """Issue 20, item 6: stiff_coupling at full fidelity, bus-free, its plant (2.6 kHz mode,
     250 us controller step) against the same plant sub-stepped 64x on every step: coupling peak
     and RMS within 1 %. Friction held for a whole controller step (1 sub-step: the former rig)
-    puts the peak more than 10 % high and the RMS 30 %: the test fails without sub-steps."""
+    puts the RMS more than 10 % high: the test fails without sub-steps."""
     import hil_sim.control as control
     from hil_sim import SCENES_DIR
     from hil_sim.rig import run as rig
@@ -307,4 +307,6 @@ def test_stiff_coupling_friction_converges_to_the_64x_sub_stepped_plant(monkeypa
     assert setup.build(1e-3, 0).plant._inner == 11  # ceil(250 us x 2641 Hz x 16)
     reference, default, held = coupling(64), coupling(None), coupling(1)
     np.testing.assert_allclose(default, reference, rtol=0.01)
-    assert np.all(held > 1.1 * reference)
+    # with the auto-tuned drive (issue 20) the held friction puts the RMS 10 % high (the peak
+    # 1 %); the old fixed gains put the peak more than 10 % high too
+    assert held[1] > 1.1 * reference[1]

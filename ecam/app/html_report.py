@@ -397,6 +397,32 @@ def _plots(report) -> str:
             f'src="data:image/png;base64,{png}">')
 
 
+def _tuning_section(report) -> str:
+    """The drive's commissioning: its tuning (gains, bandwidths, notch, margins on the full
+    model) and the Bode plot of the loops as the run has them, the margins marked."""
+    from hil_sim.rig.bode import bode_bytes, has_bode
+
+    tuning = (report.summary or {}).get("tuning")
+    if not tuning:
+        return ""
+    keys = ("source", "velocity_bandwidth_hz", "position_bandwidth_hz", "notch_hz",
+            "velocity_kp", "velocity_ki", "position_kp", "phase_margin_deg", "gain_margin_db",
+            "sensitivity_peak", "meets_limits")
+    units = {"velocity_bandwidth_hz": ("velocity loop", "Hz"),
+             "position_bandwidth_hz": ("position loop", "Hz"), "notch_hz": ("notch", "Hz"),
+             "velocity_kp": ("velocity kp", "N m s/rad"), "velocity_ki": ("velocity ki", "N m/rad"),
+             "position_kp": ("position kp", "1/s"), "phase_margin_deg": ("phase margin", "deg"),
+             "gain_margin_db": ("gain margin", "dB"), "sensitivity_peak": ("Ms", "")}
+    table = _kv_table({k: tuning.get(k) for k in keys}, units=units)
+    parts = [f"<h3>Drive tuning ({_e(tuning.get('source'))}, on the full model)</h3>", table]
+    if has_bode(report):
+        png = base64.b64encode(bode_bytes(report)).decode("ascii")
+        parts.append(f'<img class="plot" width="1100" alt="open-loop Bode plot of the velocity '
+                     f'and position loops of {_e(report.scene)}, margins marked" '
+                     f'src="data:image/png;base64,{png}">')
+    return "".join(parts)
+
+
 def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> str:
     anchor = _anchor(label)
     if isinstance(report, BaseException):
@@ -428,6 +454,7 @@ def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> s
     parts.append("<h3>Checks</h3>" + _checks_table(report))
     parts.append(f"<h3>Over the master position [{_e(units.get('master', ''))}]</h3>"
                  + _plots(report))
+    parts.append(_tuning_section(report))
     parts.append(f"<h3>Model and effects</h3><p><b>{_e(report.model)}</b>: "
                  f"{_e(report.model_reason)}</p>" + _effects(data))
     # The report's own units: the master's speed and period, the table's error (slave units).

@@ -12,6 +12,7 @@ from pathlib import Path
 from ecam.atomic_files import check_outputs, write_files
 from ecam.errors import EcamError, InputError
 from hil_sim.rig import find_max_speed, run_scene
+from hil_sim.rig.bode import bode_path
 from hil_sim.scene import load_scene
 
 from .html_report import html_report
@@ -61,7 +62,7 @@ def sim_command(args: argparse.Namespace) -> int:
         if search is not None:
             sys.stdout.write(format_search(search))
         if args.plot:
-            print(f"plots: {args.plot}")
+            print(f"plots: {args.plot}, {bode_path(args.plot)} (the open loops)")
     return 0 if report.passed else 1
 
 

@@ -40,7 +40,7 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
         faults_check(record),
     ]
     if setup is not None:
-        checks.append(loop_stability_check(run, setup))
+        checks.append(loop_stability_check(run, setup, record))
     plan, period = run.plan, run.cam.profile.master_period
     series = {"time_s": (np.arange(record.cycles) + 1.0) * plan.cycle_s,
               "master_position": plan.master_units[:record.cycles] % period,

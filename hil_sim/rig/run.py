@@ -19,8 +19,9 @@ from hil_sim.bus import BusLoad, FaultInjector, open_virtual_bus
 from hil_sim.control import AxisSetup
 from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.plant import significant_harmonic_hz
-from hil_sim.report import Report
+from hil_sim.report import Report, check
 from hil_sim.rig.analysis import analyse
+from hil_sim.rig.bode import bode_path, bode_series, plot_bode
 from hil_sim.rig.cam import CompiledCam, cam_acceleration, compile_cam
 from hil_sim.rig.fast import run_fast
 from hil_sim.rig.fidelity import Selection, select
@@ -30,6 +31,7 @@ from hil_sim.rig.plan import PreparedRun, count_cycles, cruise_s, plan_run
 from hil_sim.rig.plot import plot_report
 from hil_sim.rig.record import Record
 from hil_sim.scene import Scene, load_scene
+from hil_sim.tuning import AxisLoops
 
 _channels = itertools.count(1)  # a virtual channel of its own for every run in the process
 #: How a run moves its set points: over CANopen (the default), or bus-free.
@@ -84,6 +86,7 @@ def run_scene(scene, *, plot=None, path: str = "canopen", tuning=None) -> Report
     report = analyse(run, record, setup)
     describe_selection(report, selection)
     report.summary["tuning"] = run.tuning.to_dict()
+    report.series.update(bode_series(setup, scene.drive.cycle_s))
     analysis_s = time.perf_counter() - analysis_start
     wall_s = time.perf_counter() - wall_start
     loop_s, axis_s = timing["loop_s"], timing["axis_s"]
@@ -98,6 +101,7 @@ def run_scene(scene, *, plot=None, path: str = "canopen", tuning=None) -> Report
     }
     if plot is not None:
         plot_report(report, plot)
+        plot_bode(report, bode_path(plot))
     return report
 
 
@@ -196,7 +200,7 @@ def select_effects(run: PreparedRun) -> Selection:
 
     def measure(included) -> list:
         setup = axis_setup(quick, included)
-        return analyse(quick, run_fast(quick, setup), setup).checks
+        return analyse(quick, run_fast(quick, setup), setup).checks + margin_lines(quick, setup)
 
     # fidelity ideal: an ideal drive (no current loop), the controller's rate weighed (a coupling
     # mode above its Nyquist frequency is rung by the torque steps: the reason says so)
@@ -206,6 +210,17 @@ def select_effects(run: PreparedRun) -> Selection:
     if selection.proof is not None:
         selection.proof["cycles"] = quick.plan.cycles
     return selection
+
+
+def margin_lines(run: PreparedRun, setup: AxisSetup) -> list:
+    """The loop's phase and gain margins as lines without a limit, for the fidelity's proof
+    only: the reduced model's margins must lie within its share of the full model's (the
+    sensitivity peak is the loop_stability check's own value), or the effect that moved them
+    goes back in. An infinite margin is None (no crossing)."""
+    overall = AxisLoops.from_setup(setup, run.plan.cycle_s).assess(setup.gains).overall
+    return [check(name, value if math.isfinite(value) else None, None, unit)
+            for name, value, unit in (("loop_phase_margin", overall.phase_margin_deg, "deg"),
+                                      ("loop_gain_margin", overall.gain_margin_db, "dB"))]
 
 
 def describe_selection(report: Report, selection: Selection) -> None:

@@ -20,7 +20,7 @@ from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
     HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable,
-    TableFormat, divisors, overflow_proof,
+    TableFormat, divisors, narrow_horner, overflow_proof,
 )
 from .table_spec import MAX_POINTS, TableSpec, parse_tolerance
 
@@ -48,6 +48,7 @@ def compile_table(
     tolerance=None,
     master_counts: int | None = None,
     slave_counts_per_unit: float | None = None,
+    horner_bits: int | None = None,
     certify: bool = True,
     progress=None,
 ) -> CamTable:
@@ -70,6 +71,9 @@ def compile_table(
         Master period in encoder counts, 2..2^31.
     slave_counts_per_unit : float
         Slave counts per slave user unit; every table position must fit int32.
+    horner_bits : {64, 32}, optional
+        32: the finest format whose expanded form runs in 32-bit words (see
+        :class:`TableSpec`); default 64.
     certify : bool
         Measure the error of the integer lookup (default). Without it the report has the
         prediction only.
@@ -90,7 +94,7 @@ def compile_table(
     if not isinstance(profile, CamProfile):
         raise InputError(f"profile {type(profile).__name__} should be a CamProfile (see ecam.load_cam)")
     overrides = dict(interp=interp, points=points, tolerance=tolerance, master_counts=master_counts,
-                     slave_counts_per_unit=slave_counts_per_unit)
+                     slave_counts_per_unit=slave_counts_per_unit, horner_bits=horner_bits)
     if spec is None:
         spec = TableSpec.resolve(profile.table, **overrides)
     elif any(value is not None for value in overrides.values()):
@@ -106,7 +110,7 @@ def compile_table(
                 f"slave position {value:g} {profile.slave_unit} x slave_counts_per_unit {scale:g} = "
                 f"{value * scale:.6g} counts overflows int32 (limit {_INT32_MAX})"
             )
-    job = _Job(profile, master_counts, scale)
+    job = _Job(profile, master_counts, scale, narrow=spec.horner_bits == 32)
     if abs(job.net) >= 2**31:
         raise InputError(f"net stroke {profile.net_stroke:+g} {profile.slave_unit} x slave_counts_per_unit {scale:g} "
                          f"= {float(job.net):.6g} counts per period should be below 2^31 counts")
@@ -177,8 +181,9 @@ def candidate_intervals(profile: CamProfile, master_counts: int, degree: int) ->
 class _Job:
     """One profile at one counts scaling; builds and certifies tables for several formats."""
 
-    def __init__(self, profile: CamProfile, master_counts: int, scale: float):
+    def __init__(self, profile: CamProfile, master_counts: int, scale: float, narrow: bool = False):
         self.profile = profile
+        self.narrow = narrow
         self.M = master_counts
         self.S = scale
         self.unit = profile.master_period / master_counts  # master user units per count
@@ -309,7 +314,7 @@ class _Job:
         if np.abs(data[0]).max() + 0.5 > _INT32_MAX:
             raise TableFormatError(f"table position {np.abs(data[0]).max():.0f} counts overflows int32")
         fmt, positions, slopes, curvatures = _choose_format(degree, self.profile.periodic, h, intervals, data,
-                                                            self.net)
+                                                            self.net, self.narrow)
         table = CamTable(fmt, positions, slopes, curvatures)
         return replace(table, certificate=self.certificate(table, data, certify, progress))
 
@@ -443,8 +448,10 @@ def _sorted_unique(values: np.ndarray) -> np.ndarray:
 # fixed-point format --------------------------------------------------------------------------
 
 
-def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fraction(0)):
-    """Pick position/tau/work/slope/curvature bits as fine as the int64 budget allows; prove it."""
+def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fraction(0), narrow: bool = False):
+    """Pick position/tau/work/slope/curvature bits as fine as the int64 budget allows; prove it.
+    With ``narrow``, as fine as keeps the expanded form's Horner values in 32-bit words
+    (:func:`ecam.table.narrow_horner`)."""
     pow2 = h & (h - 1) == 0
     position_fit = min(30, _fit_bits(data[0]))
     need = (h - 1).bit_length()
@@ -474,6 +481,10 @@ def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fractio
                 fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
                                   tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip,
                                   position_bits, net.numerator, net.denominator)
+                if narrow and not narrow_horner(CamTable(fmt, positions, slopes, curvatures)):
+                    last_error = ("no format keeps the expanded form's Horner values in 32-bit words "
+                                  f"(work_bits down to {work_bits}): horner_bits 32 needs a smaller stroke in counts")
+                    continue
                 return (
                     fmt,
                     positions.astype(np.int32),

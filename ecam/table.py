@@ -21,7 +21,7 @@ from .certificate import Certificate
 from .errors import TableFormatError
 from .validate import fail
 
-__all__ = ["TableFormat", "CamTable", "LOADER_STATUS", "loader_proof", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "FORMAT_VERSIONS",
+__all__ = ["TableFormat", "CamTable", "LOADER_STATUS", "loader_proof", "narrow_horner", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "FORMAT_VERSIONS",
            "MAGIC", "MAX_NET_DENOMINATOR"]
 
 KINDS = {"linear": 1, "cubic": 3, "quintic": 5}
@@ -751,6 +751,25 @@ def hermite_coefficients(degree, y, s=None, c=None) -> list:
     b0, b1 = c[:-1], c[1:]
     return [a0, b0, 10 * d - 6 * a0 - 4 * a1 - 3 * b0 + b1, -15 * d + 8 * a0 + 7 * a1 + 3 * b0 - 2 * b1,
             6 * d - 3 * a0 - 3 * a1 - b0 + b1]
+
+
+def narrow_horner(table: "CamTable") -> bool:
+    """True when the expanded form of ``table`` runs in 32-bit words (FORMAT.md "Expanded form"):
+    with c0 = Y0 2^(W-Qy) + half and c1..cn of step 4 for every interval, r_n = |c_n|,
+    r_k = |c_k| + r_(k+1) + 1 < 2^30 for k = n..1, |c0| + r_1 + 1 < 2^31, and W <= 30; the C
+    runtime's ``ecam_poly_init`` decides the same and then picks its narrow kernels."""
+    f = table.format
+    if f.work_bits > 30:
+        return False
+    rows = [np.abs(row).astype(np.float64) for row in table.coefficient_rows()]  # exact below 2^53
+    half = float(1 << (f.work_bits - 1)) if f.work_bits else 0.0
+    r = rows[f.degree]
+    ok = bool((r < 2.0**30).all())
+    for k in range(f.degree - 1, 0, -1):
+        r = r + rows[k] + 1
+        ok = ok and bool((r < 2.0**30).all())
+    c0 = np.abs(table.coefficient_rows()[0].astype(np.float64) + half)
+    return ok and bool((c0 + r + 1 < 2.0**31).all())
 
 
 def hermite_magnitudes(degree, y, s=None, c=None) -> list:

@@ -24,6 +24,7 @@ MAX_COUNTS_PER_UNIT = 1e12
 DEFAULT_INTERP = "cubic"
 DEFAULT_MASTER_COUNTS = 2**16
 DEFAULT_COUNTS_PER_UNIT = 1000.0
+HORNER_BITS = (64, 32)
 
 
 _COUNT_WORDS = ("counts", "count", "lsb")
@@ -77,6 +78,12 @@ class TableSpec:
         Master period in encoder counts, 2..2^31.
     slave_counts_per_unit : float
         Slave counts per slave unit, 1e-6..1e12.
+    horner_bits : {64, 32}
+        64 (default): the finest fixed-point format int64 allows. 32: the finest whose expanded
+        form (``ecam_poly_init``, FORMAT.md "Expanded form") keeps every Horner value inside
+        32-bit words, so that ``ecam_poly_position`` runs its narrow kernels (one 32x32 multiply
+        per degree: the cheapest lookup on 32-bit cores); it has fewer work bits, and the
+        certificate says what that costs, which grows with the stroke in counts (FORMAT.md).
     """
 
     interp: str = DEFAULT_INTERP
@@ -84,9 +91,13 @@ class TableSpec:
     tolerance: float | str | None = None
     master_counts: int = DEFAULT_MASTER_COUNTS
     slave_counts_per_unit: float = DEFAULT_COUNTS_PER_UNIT
+    horner_bits: int = 64
 
     def __post_init__(self):
         validate.choice("interp", self.interp, INTERPOLATIONS)
+        if isinstance(self.horner_bits, bool) or _plain_int(self.horner_bits) not in HORNER_BITS:
+            raise validate.fail("horner_bits", self.horner_bits, "64 or 32")
+        object.__setattr__(self, "horner_bits", int(self.horner_bits))
         object.__setattr__(self, "master_counts", validate.integer(
             "master_counts", _plain_int(self.master_counts), minimum=2, maximum=MAX_MASTER_COUNTS))
         object.__setattr__(self, "slave_counts_per_unit", validate.number(
@@ -116,7 +127,7 @@ class TableSpec:
 
     @classmethod
     def resolve(cls, defaults: Mapping, *, interp=None, points=None, tolerance=None, master_counts=None,
-                slave_counts_per_unit=None) -> "TableSpec":
+                slave_counts_per_unit=None, horner_bits=None) -> "TableSpec":
         """The spec from explicit settings over ``defaults`` (a cam file's ``[table]``).
 
         Points and tolerance travel together: giving either one replaces both of the defaults'.
@@ -135,4 +146,5 @@ class TableSpec:
             else master_counts,
             slave_counts_per_unit=defaults.get("slave_counts_per_unit", DEFAULT_COUNTS_PER_UNIT)
             if slave_counts_per_unit is None else slave_counts_per_unit,
+            horner_bits=defaults.get("horner_bits", 64) if horner_bits is None else horner_bits,
         )

@@ -22,7 +22,17 @@
  *   - 32-bit cores: each stored word times a constant w * 2^(W - Q), a 32x32 multiply-accumulate
  *     (Cortex-M4 -O2: 128 instead of 152 for that table, 61 instead of 63 for the cubic).
  * Never ship this: it trusts its inputs completely.
+ *
+ * Two more yardsticks with the coefficients of each interval's polynomial precomputed (issue 27):
+ *   - ecam_minimal_expanded_<degree>: the expanded form's own lookup hand-written (the int64
+ *     words of ecam_poly_init, FORMAT.md "Expanded form", with the format as constants): the same
+ *     bits as ecam_poly_position inside the period;
+ *   - ecam_minimal_q16_<degree>: the cheapest lookup a firmware engineer writes for a drive, one
+ *     Horner chain of int32 multiply-shift-adds with the fraction in Q16 and int32 coefficients
+ *     in whole counts (c_k / 2^W of step 4): fewer bits than the table (its results differ from
+ *     the runtime's by up to a few counts), so it is the floor of the cost, not of the accuracy.
  */
+#include <stddef.h>
 #include <stdint.h>
 
 #include "ecam_minimal.h"
@@ -161,4 +171,86 @@ int32_t ecam_minimal_quintic(const int32_t *position, const int32_t *slope,
     r = a0 * ECAM_MIN_SA + ecam_min_asr(r * tau, ECAM_MIN_TAU_BITS);
 #endif
     return ecam_min_out(y0, r, tau);
+}
+
+/* Step 5 with the coefficients of step 4 precomputed as int64 words (ecam_poly_init's buffer:
+ * c0 = Y0 2^(W-Qy) + half, then c1 .. cn). */
+#define ECAM_MIN_MULSHIFT(r, tau) ecam_min_asr((r) * (tau), ECAM_MIN_TAU_BITS)
+
+int32_t ecam_minimal_expanded_linear(const int64_t *c, uint32_t master)
+{
+    int64_t tau;
+    const int64_t *k = &c[(size_t)ecam_min_locate(master, &tau) * 2u];
+
+    return (int32_t)ecam_min_asr(k[0] + ECAM_MIN_MULSHIFT(k[1], tau), ECAM_MIN_WORK_BITS);
+}
+
+int32_t ecam_minimal_expanded_cubic(const int64_t *c, uint32_t master)
+{
+    int64_t tau;
+    const int64_t *k = &c[(size_t)ecam_min_locate(master, &tau) * 4u];
+    int64_t r = k[2] + ECAM_MIN_MULSHIFT(k[3], tau);
+
+    r = k[1] + ECAM_MIN_MULSHIFT(r, tau);
+    return (int32_t)ecam_min_asr(k[0] + ECAM_MIN_MULSHIFT(r, tau), ECAM_MIN_WORK_BITS);
+}
+
+int32_t ecam_minimal_expanded_quintic(const int64_t *c, uint32_t master)
+{
+    int64_t tau;
+    const int64_t *k = &c[(size_t)ecam_min_locate(master, &tau) * 6u];
+    int64_t r = k[4] + ECAM_MIN_MULSHIFT(k[5], tau);
+
+    r = k[3] + ECAM_MIN_MULSHIFT(r, tau);
+    r = k[2] + ECAM_MIN_MULSHIFT(r, tau);
+    r = k[1] + ECAM_MIN_MULSHIFT(r, tau);
+    return (int32_t)ecam_min_asr(k[0] + ECAM_MIN_MULSHIFT(r, tau), ECAM_MIN_WORK_BITS);
+}
+
+/* The interval and the fraction in Q16 (tau 2^16 / h), by constants. */
+static uint32_t ecam_min_locate16(uint32_t master, int32_t *tau16)
+{
+    const uint32_t i = master / ECAM_MIN_STEP;
+    const uint32_t offset = master - i * ECAM_MIN_STEP;
+
+    if ((ECAM_MIN_STEP & (ECAM_MIN_STEP - 1u)) == 0u) {
+        *tau16 = (int32_t)(ECAM_MIN_TAU_BITS <= 16 ? offset << (16 - ECAM_MIN_TAU_BITS % 17)
+                                                    : offset >> (ECAM_MIN_TAU_BITS - 16) % 32);
+    } else {
+        *tau16 = (int32_t)(((uint64_t)offset * (uint64_t)((UINT64_C(1) << 48) / ECAM_MIN_STEP)) >> 32);
+    }
+    return i;
+}
+
+/* r = c_k + (r tau16 >> 16), in int32, the shift as one arithmetic shift. */
+#define ECAM_MIN_Q16(c, r, tau16) ((c) + (int32_t)ecam_min_asr((int64_t)(r) * (tau16), 16))
+
+int32_t ecam_minimal_q16_linear(const int32_t *c, uint32_t master)
+{
+    int32_t tau16;
+    const int32_t *k = &c[(size_t)ecam_min_locate16(master, &tau16) * 2u];
+
+    return ECAM_MIN_Q16(k[0], k[1], tau16);
+}
+
+int32_t ecam_minimal_q16_cubic(const int32_t *c, uint32_t master)
+{
+    int32_t tau16;
+    const int32_t *k = &c[(size_t)ecam_min_locate16(master, &tau16) * 4u];
+    int32_t r = ECAM_MIN_Q16(k[2], k[3], tau16);
+
+    r = ECAM_MIN_Q16(k[1], r, tau16);
+    return ECAM_MIN_Q16(k[0], r, tau16);
+}
+
+int32_t ecam_minimal_q16_quintic(const int32_t *c, uint32_t master)
+{
+    int32_t tau16;
+    const int32_t *k = &c[(size_t)ecam_min_locate16(master, &tau16) * 6u];
+    int32_t r = ECAM_MIN_Q16(k[4], k[5], tau16);
+
+    r = ECAM_MIN_Q16(k[3], r, tau16);
+    r = ECAM_MIN_Q16(k[2], r, tau16);
+    r = ECAM_MIN_Q16(k[1], r, tau16);
+    return ECAM_MIN_Q16(k[0], r, tau16);
 }

@@ -12,4 +12,13 @@ int32_t ecam_minimal_cubic(const int32_t *position, const int32_t *slope, uint32
 int32_t ecam_minimal_quintic(const int32_t *position, const int32_t *slope,
                              const int32_t *curvature, uint32_t master);
 
+/* Precomputed coefficients per interval: the expanded form's int64 words (ecam_poly_init), and
+ * int32 words in whole counts with the fraction in Q16 (see ecam_minimal.c). */
+int32_t ecam_minimal_expanded_linear(const int64_t *c, uint32_t master);
+int32_t ecam_minimal_expanded_cubic(const int64_t *c, uint32_t master);
+int32_t ecam_minimal_expanded_quintic(const int64_t *c, uint32_t master);
+int32_t ecam_minimal_q16_linear(const int32_t *c, uint32_t master);
+int32_t ecam_minimal_q16_cubic(const int32_t *c, uint32_t master);
+int32_t ecam_minimal_q16_quintic(const int32_t *c, uint32_t master);
+
 #endif /* ECAM_MINIMAL_H */

@@ -2056,10 +2056,419 @@ int ecam_pair_idle(const ecam_table_pair *pair)
 }
 
 /* ------------------------------------------------------------------------------------------ */
+/* Expanded form (FORMAT.md "Expanded form")                                                  */
+/* ------------------------------------------------------------------------------------------ */
+
+/* ecam_poly.outside: what a master outside [0, M) takes. */
+#define ECAM_POLY_WRAP 0u       /* periodic: the wrap, inline */
+#define ECAM_POLY_WRAP_WHOLE 1u /* a whole net stroke per period (D = 1): the wrap and k N, inline */
+#define ECAM_POLY_COLD 2u       /* the clamp, or a fractional net stroke: ecam_poly_outside */
+
+#if ECAM_WORD_BITS == 64
+/* asr(x * tau, F) on 64-bit cores: one multiply, one arithmetic shift. */
+static ECAM_INLINE uint64_t ecam_poly_mulshift(const ecam_poly *p, uint64_t x, uint64_t tau)
+{
+    return ecam_asr(x * tau, p->tau_bits);
+}
+
+/* The int32 result of asr(z, W). */
+static ECAM_INLINE int32_t ecam_poly_out(const ecam_poly *p, uint64_t z)
+{
+    return ecam_i32((uint32_t)ecam_asr(z, p->work_bits));
+}
+#else
+/* asr(x * tau, F) = floor(x * (tau 2^(32-F)) / 2^32) on 32-bit cores (see ecam_mulshift). */
+static ECAM_INLINE uint64_t ecam_poly_mulshift(const ecam_poly *p, uint64_t x, uint32_t y)
+{
+    const uint64_t low = (uint64_t)(uint32_t)x * y;
+    const uint32_t x_high = (uint32_t)(x >> 32);
+    const uint64_t high = (uint64_t)x_high * y + (low >> 32);
+    const uint32_t correction = y & (0u - (x_high >> 31)); /* y when x < 0, else 0 */
+
+    (void)p;
+    return high - ((uint64_t)correction << 32);
+}
+
+/* The int32 result of asr(z, W) without a 64-bit shift (see ecam_out). */
+static ECAM_INLINE int32_t ecam_poly_out(const ecam_poly *p, uint64_t z)
+{
+    const uint32_t low = (uint32_t)z;
+    const uint32_t high = (uint32_t)(z >> 32);
+    const uint32_t y_low = (uint32_t)p->out_mul;
+    const uint32_t y_high = (uint32_t)(p->out_mul >> 32);
+    const uint32_t scaled =
+        (uint32_t)(((uint64_t)low * y_low) >> 32) + (high * y_low) + (low * y_high);
+
+    return ecam_i32(ecam_asr32(scaled, p->out_rshift));
+}
+#endif
+
+/* floor(2 r y / 2^32) for |r| < 2^30 and 0 <= y < 2^31: the high word of one signed product. */
+static ECAM_INLINE int32_t ecam_poly_mulhi(int32_t r, int32_t y)
+{
+    const int64_t product = (int64_t)(r * 2) * y;
+
+    return ecam_i32((uint32_t)((uint64_t)product >> 32));
+}
+
+/* 32-bit asr(x, s) for s <= 31 (the narrow kernels' final shift). */
+static ECAM_INLINE uint32_t ecam_asr32_any(uint32_t x, unsigned s)
+{
+    const int32_t v = ecam_i32(x);
+
+    return (uint32_t)(v >= 0 ? v >> s : ~(~v >> s));
+}
+
+/* Steps 2, 3 and 5 for a master inside [0, M), the coefficients of step 4 read from the buffer
+ * (the rounding term is in c0): one load per coefficient, one multiply-shift-add per degree. */
+static ECAM_INLINE int32_t ecam_poly_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+{
+    uint32_t tau_in;
+    uint32_t i;
+    const int64_t *c;
+
+    if (pow2) {
+        tau_in = local & p->step_mask;
+        i = local >> p->step_shift;
+    } else {
+        uint32_t rest;
+
+        i = (uint32_t)(((uint64_t)local * p->step_recip) >> 32); /* see ecam_locate */
+        rest = local - i * p->step_counts;
+        if (rest >= p->step_counts) {
+            rest -= p->step_counts;
+            i++;
+        }
+        tau_in = (uint32_t)(((uint64_t)rest * p->tau_recip) >> 32);
+    }
+    c = &p->coefficient[(size_t)i * (n + 1u)];
+    {
+#if ECAM_WORD_BITS == 64
+        const uint64_t tau = tau_in;
+#else
+        const uint32_t tau = tau_in << p->tau_lshift;
+#endif
+        uint64_t r = (uint64_t)c[n];
+
+        /* written out (n is a constant here): a loop costs a counter and a compare per step */
+        if (n == 5u) {
+            r = (uint64_t)c[4] + ecam_poly_mulshift(p, r, tau);
+            r = (uint64_t)c[3] + ecam_poly_mulshift(p, r, tau);
+            r = (uint64_t)c[2] + ecam_poly_mulshift(p, r, tau);
+        } else if (n == 3u) {
+            r = (uint64_t)c[2] + ecam_poly_mulshift(p, r, tau);
+        } else {
+            /* linear: c1 alone */
+        }
+        if (n != 1u) {
+            r = (uint64_t)c[1] + ecam_poly_mulshift(p, r, tau);
+        }
+        return ecam_poly_out(p, (uint64_t)c[0] + ecam_poly_mulshift(p, r, tau));
+    }
+}
+
+/* Steps 2, 3 and 5 in 32-bit words, for a table whose Horner values all stay below 2^30 (see
+ * ecam_poly_narrow): with y = tau 2^(31-F) < 2^31, asr(r tau, F) = floor(2r y / 2^32), the high
+ * word of one 32x32 signed product, exactly; the final sum fits int32 and W <= 30. */
+static ECAM_INLINE int32_t ecam_poly_narrow_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+{
+    uint32_t tau_in;
+    uint32_t i;
+    const int64_t *c;
+    int32_t y;
+    int32_t r;
+
+    if (pow2) {
+        tau_in = local & p->step_mask;
+        i = local >> p->step_shift;
+    } else {
+        uint32_t rest;
+
+        i = (uint32_t)(((uint64_t)local * p->step_recip) >> 32); /* see ecam_locate */
+        rest = local - i * p->step_counts;
+        if (rest >= p->step_counts) {
+            rest -= p->step_counts;
+            i++;
+        }
+        tau_in = (uint32_t)(((uint64_t)rest * p->tau_recip) >> 32);
+    }
+    c = &p->coefficient[(size_t)i * (n + 1u)];
+    y = (int32_t)(tau_in << p->narrow_lshift);
+    r = (int32_t)c[n];
+    if (n == 5u) {
+        r = (int32_t)c[4] + ecam_poly_mulhi(r, y);
+        r = (int32_t)c[3] + ecam_poly_mulhi(r, y);
+        r = (int32_t)c[2] + ecam_poly_mulhi(r, y);
+    } else if (n == 3u) {
+        r = (int32_t)c[2] + ecam_poly_mulhi(r, y);
+    } else {
+        /* linear: c1 alone */
+    }
+    if (n != 1u) {
+        r = (int32_t)c[1] + ecam_poly_mulhi(r, y);
+    }
+    return ecam_i32(ecam_asr32_any((uint32_t)((int32_t)c[0] + ecam_poly_mulhi(r, y)), p->work_bits));
+}
+
+static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m);
+
+/* A master inside [0, M) straight through. Past it, the table's wrap (and a whole net stroke's
+ * term, one multiply) inline, so that any int64 master costs one reduction more than the
+ * period; the clamp and a fractional net stroke go through the cold function. */
+static ECAM_INLINE int32_t ecam_poly_kernel_of(const ecam_poly *p, int64_t m, unsigned n, bool pow2,
+                                               bool narrow)
+{
+    uint32_t local = (uint32_t)m;
+    uint32_t term = 0u;
+
+#if ECAM_WORD_BITS == 64
+    if ((uint64_t)m >= p->master_limit) {
+#else
+    if ((uint64_t)m >= (uint32_t)p->master_limit) {
+#endif
+        const ecam_table *t = p->table;
+
+        if (p->outside == ECAM_POLY_WRAP) {
+            local = ecam_wrap(t, m);
+        } else if (p->outside == ECAM_POLY_WRAP_WHOLE) {
+            uint64_t turns = 0u;
+
+            local = ecam_wrap_turns(t, m, &turns);
+            term = (uint32_t)turns * t->net_whole;
+        } else {
+            return ecam_poly_outside(p, m);
+        }
+    }
+    if (narrow) {
+        return ecam_i32((uint32_t)ecam_poly_narrow_at(p, local, n, pow2) + term);
+    }
+    return ecam_i32((uint32_t)ecam_poly_at(p, local, n, pow2) + term);
+}
+
+static int32_t ecam_poly_linear_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 1u, true, false);
+}
+
+static int32_t ecam_poly_narrow_linear_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 1u, true, true);
+}
+
+static int32_t ecam_poly_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 1u, false, false);
+}
+
+static int32_t ecam_poly_narrow_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 1u, false, true);
+}
+
+static int32_t ecam_poly_cubic_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 3u, true, false);
+}
+
+static int32_t ecam_poly_narrow_cubic_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 3u, true, true);
+}
+
+static int32_t ecam_poly_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 3u, false, false);
+}
+
+static int32_t ecam_poly_narrow_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 3u, false, true);
+}
+
+static int32_t ecam_poly_quintic_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 5u, true, false);
+}
+
+static int32_t ecam_poly_narrow_quintic_pow2(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 5u, true, true);
+}
+
+static int32_t ecam_poly_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 5u, false, false);
+}
+
+static int32_t ecam_poly_narrow_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_kernel_of(p, m, 5u, false, true);
+}
+
+/* Step 1 past [0, M): the table's clamp, or its wrap (and step 7's term), then the kernel again
+ * with the master inside the period. */
+static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m)
+{
+    const ecam_table *t = p->table;
+    uint64_t turns = 0u;
+    uint32_t local;
+    uint32_t term = 0u;
+
+    if (t->periodic == ECAM_CLAMP) {
+        return m < 0 ? t->end_position[0] : t->end_position[1];
+    }
+    if (t->periodic == ECAM_WRAP_NET) {
+        local = ecam_wrap_turns(t, m, &turns);
+        term = ecam_net_term(t, turns);
+    } else {
+        local = ecam_wrap(t, m);
+    }
+    return ecam_i32((uint32_t)p->kernel(p, (int64_t)local) + term);
+}
+
+/* |x| of an int64 below 2^63 in magnitude, as uint64 (the proof keeps c_k far from -2^63). */
+static uint64_t ecam_magnitude(int64_t x)
+{
+    return (x < 0) ? (0u - (uint64_t)x) : (uint64_t)x;
+}
+
+/* True when every interval's Horner values fit the narrow kernels (FORMAT.md "Expanded form"):
+ * with r_n = |c_n|, r_k = |c_k| + r_(k+1) + 1, every r_k < 2^30, |c0| + r_1 + 1 < 2^31, W <= 30. */
+static bool ecam_poly_narrow(const int64_t *c, const ecam_table *t)
+{
+    const uint64_t limit = UINT64_C(1) << 30;
+    const size_t words = (size_t)t->degree + 1u;
+    uint32_t i;
+    unsigned k;
+
+    if (t->work_bits > 30u) {
+        return false;
+    }
+    for (i = 0u; i < t->intervals; i++) {
+        const int64_t *row = &c[(size_t)i * words];
+        uint64_t r = ecam_magnitude(row[t->degree]);
+
+        if (r >= limit) {
+            return false;
+        }
+        for (k = (unsigned)t->degree - 1u; k >= 1u; k--) {
+            r += ecam_magnitude(row[k]) + 1u; /* each term below 2^63: no wrap */
+            if (r >= limit) {
+                return false;
+            }
+        }
+        if (ecam_magnitude(row[0]) + r + 1u >= (UINT64_C(1) << 31)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+size_t ecam_poly_bytes(const ecam_table *t)
+{
+    size_t words;
+
+    if (ecam_table_ready(t) == 0) {
+        return 0u;
+    }
+    words = (size_t)t->degree + 1u;
+    if ((size_t)t->intervals > (SIZE_MAX / sizeof(int64_t)) / words) {
+        return 0u; /* past this core's address space */
+    }
+    return (size_t)t->intervals * words * sizeof(int64_t);
+}
+
+int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t buffer_bytes)
+{
+    static const ecam_poly cleared;
+    const size_t need = ecam_poly_bytes(t);
+    const bool pow2 = (t != NULL) && ecam_pow2(t);
+    uint32_t i;
+    unsigned k;
+
+    if (p == NULL) {
+        return (int)ECAM_E_NULL;
+    }
+    *p = cleared;
+    if (t == NULL || buffer == NULL) {
+        p->status = (int32_t)ECAM_E_NULL;
+        return (int)ECAM_E_NULL;
+    }
+    if (ecam_table_ready(t) == 0) {
+        p->status = (int32_t)ecam_table_status(t);
+        return (int)p->status;
+    }
+    if (need == 0u || buffer_bytes < need) {
+        p->status = (int32_t)ECAM_E_BUFFER;
+        return (int)ECAM_E_BUFFER;
+    }
+    /* c0 = Y0 2^(W-Qy) + half (the final rounding term folded in), then c1 .. cn of step 4;
+     * the loader's proof keeps every value and sum of the lookup inside int64. */
+    for (i = 0u; i < t->intervals; i++) {
+        const size_t at = (size_t)i * 4u;
+        int64_t *c = &buffer[(size_t)i * ((size_t)t->degree + 1u)];
+
+        c[0] = ecam_i64(ecam_scaled_any(&t->position[at], t->position_scale) + t->half);
+        for (k = 1u; k <= t->degree; k++) {
+            c[k] = ecam_i64(ecam_coefficient(t, at, k));
+        }
+    }
+    p->coefficient = buffer;
+    p->table = t;
+    p->master_limit = t->master_limit;
+    p->tau_recip = t->tau_recip;
+    p->out_mul = (t->work_bits > 32u) ? (uint64_t)1u : (UINT64_C(1) << (32u - t->work_bits));
+    p->step_counts = t->step_counts;
+    p->step_recip = t->step_recip;
+    p->step_mask = t->step_mask;
+    p->status = (int32_t)ECAM_OK;
+    p->degree = t->degree;
+    p->step_shift = t->step_shift;
+    p->tau_bits = t->tau_bits;
+    p->tau_lshift = t->tau_lshift;
+    p->work_bits = t->work_bits;
+    p->out_rshift = (uint8_t)((t->work_bits > 32u) ? (unsigned)t->work_bits - 32u : 0u);
+    p->outside = (uint8_t)ECAM_POLY_COLD;
+    if (t->periodic == ECAM_WRAP) {
+        p->outside = (uint8_t)ECAM_POLY_WRAP;
+    } else if ((t->periodic == ECAM_WRAP_NET) && (t->net_rest == 0u)) {
+        p->outside = (uint8_t)ECAM_POLY_WRAP_WHOLE;
+    } else {
+        /* the clamp, or a fractional net stroke */
+    }
+    p->narrow_lshift = (uint8_t)(31u - t->tau_bits);
+    /* 64-bit cores: the 64-bit kernels are as short (one multiply and one shift per degree) */
+    if ((ECAM_WORD_BITS != 64) && ecam_poly_narrow(buffer, t) && (p->narrow_lshift >= 1u)) {
+        if (t->degree == 1u) {
+            p->kernel = pow2 ? ecam_poly_narrow_linear_pow2 : ecam_poly_narrow_linear;
+        } else if (t->degree == 3u) {
+            p->kernel = pow2 ? ecam_poly_narrow_cubic_pow2 : ecam_poly_narrow_cubic;
+        } else {
+            p->kernel = pow2 ? ecam_poly_narrow_quintic_pow2 : ecam_poly_narrow_quintic;
+        }
+    } else if (t->degree == 1u) {
+        p->kernel = pow2 ? ecam_poly_linear_pow2 : ecam_poly_linear;
+    } else if (t->degree == 3u) {
+        p->kernel = pow2 ? ecam_poly_cubic_pow2 : ecam_poly_cubic;
+    } else {
+        p->kernel = pow2 ? ecam_poly_quintic_pow2 : ecam_poly_quintic;
+    }
+    return (int)ECAM_OK;
+}
+
+int32_t ecam_poly_position(const ecam_poly *p, int64_t master_counts)
+{
+    if (p == NULL || p->kernel == NULL) {
+        return ECAM_INVALID;
+    }
+    return p->kernel(p, master_counts);
+}
+
+/* ------------------------------------------------------------------------------------------ */
 /* Status names                                                                               */
 /* ------------------------------------------------------------------------------------------ */
 
-/* Names indexed by -status (0 .. 34). */
+/* Names indexed by -status (0 .. 35). */
 
 /* Stable identifiers for logs and test drivers; unknown codes get a generic name. */
 const char *ecam_status_name(int status)
@@ -2099,7 +2508,8 @@ const char *ecam_status_name(int status)
         "ECAM_E_SLOPE_RANGE",
         "ECAM_E_UNINITIALISED",
         "ECAM_E_BUSY",
-        "ECAM_E_NET_STROKE"};
+        "ECAM_E_NET_STROKE",
+        "ECAM_E_BUFFER"};
 
     const size_t names = sizeof ecam_status_names / sizeof ecam_status_names[0];
     const int count = (int)names;

@@ -90,7 +90,9 @@ typedef enum ecam_status {
     ECAM_E_UNINITIALISED = -32, /* ecam_table_status of a zero-filled, never initialised table */
     ECAM_E_BUSY = -33,          /* ecam_pair_load: the interrupt still reads the spare table */
     /* version 2 (checked after the field rules, before the length) */
-    ECAM_E_NET_STROKE = -34 /* net stroke N/D not reduced, D = 0, |N/D| >= 2^31, or not periodic */
+    ECAM_E_NET_STROKE = -34, /* net stroke N/D not reduced, D = 0, |N/D| >= 2^31, or not periodic */
+    /* the expanded form (ecam_poly_init; not a loader rule) */
+    ECAM_E_BUFFER = -35 /* the caller's buffer is smaller than ecam_poly_bytes(table) */
 } ecam_status;
 
 typedef struct ecam_table ecam_table;
@@ -229,6 +231,64 @@ const ecam_table *ecam_pair_acquire(ecam_table_pair *pair);
 
 /* 1 when the interrupt has acquired the latest table, so the spare one is no longer read. */
 int ecam_pair_idle(const ecam_table_pair *pair);
+
+/*
+ * The expanded form (FORMAT.md "Expanded form"): the same table with its per-interval polynomial
+ * precomputed into a buffer the caller provides, for a lookup that is one Horner chain (no
+ * Hermite coefficients per call). Same results as ecam_table_position, bit for bit, for every
+ * int64 master; the trade is RAM for instructions:
+ *
+ *   RAM  ecam_poly_bytes(t) = (points - 1) * (degree + 1) * 8 bytes (quintic: 48 B per interval,
+ *        4 times the 12 B per point of the blob; cubic 32 B, 2.7 times; linear 16 B, 4 times),
+ *        plus sizeof(ecam_poly).
+ *
+ *   static int64_t coefficients[ECAM_POLY_WORDS(64, 5)];   (64 intervals, quintic: 3 KB)
+ *   rc = ecam_poly_init(&poly, &table, coefficients, sizeof coefficients);
+ *   position = ecam_poly_position(&poly, master);
+ *
+ * The expansion reads the table's blob once (init); the lookup reads only the buffer inside the
+ * period, and the table (which must stay initialised and unchanged) for a master outside it: the
+ * wrap, the clamp and a net stroke's step 7 are the table's. Not safe while an interrupt reads p:
+ * expand into a second ecam_poly and publish a pointer to it.
+ */
+#define ECAM_POLY_WORDS(intervals, degree) ((size_t)(intervals) * ((size_t)(degree) + 1u))
+
+typedef struct ecam_poly ecam_poly;
+typedef int32_t (*ecam_poly_kernel)(const ecam_poly *poly, int64_t master_counts);
+
+struct ecam_poly {
+    ecam_poly_kernel kernel;   /* NULL unless ready */
+    const int64_t *coefficient; /* per interval: Y0 2^(W-Qy) + half, c1 .. cn (FORMAT.md step 4) */
+    const ecam_table *table;   /* step 1 (wrap, clamp) and step 7 past [0, M) */
+    uint64_t master_limit;     /* M */
+    uint64_t tau_recip;        /* R */
+    uint64_t out_mul;          /* 32-bit cores' final shift W: 2^(32-W) if W <= 32, else 1 */
+    uint32_t step_counts;      /* h */
+    uint32_t step_recip;       /* floor(2^32 / h) when h is not a power of two */
+    uint32_t step_mask;        /* h - 1 when h is a power of two */
+    int32_t status;            /* ECAM_OK when ready, else why init failed */
+    uint8_t degree;            /* n */
+    uint8_t step_shift;        /* k when h = 2^k */
+    uint8_t tau_bits;          /* F */
+    uint8_t tau_lshift;        /* (32 - F) mod 32 */
+    uint8_t work_bits;         /* W */
+    uint8_t out_rshift;        /* 32-bit cores' final shift: W - 32 if W > 32, else 0 */
+    uint8_t narrow_lshift;     /* 31 - F: the narrow kernels' fraction tau 2^(31-F) */
+    uint8_t outside;           /* past [0, M): 0 the wrap, 1 the wrap and a whole net stroke
+                                  (both inline), 2 the clamp or a fractional net stroke */
+};
+
+/* Bytes of int64 buffer the expansion of t needs; 0 when t is NULL or not ready. */
+size_t ecam_poly_bytes(const ecam_table *t);
+
+/* Expand t into buffer[0 .. ecam_poly_bytes(t)); ECAM_OK, or ECAM_E_NULL, the table's own status
+ * when it is not ready, or ECAM_E_BUFFER; on failure p is not ready (its lookups return
+ * ECAM_INVALID). */
+int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t buffer_bytes);
+
+/* The slave position at any master: ecam_table_position(t, m) bit for bit, through the buffer.
+ * ECAM_INVALID when p is NULL or not ready. */
+int32_t ecam_poly_position(const ecam_poly *p, int64_t master_counts);
 
 #ifdef __cplusplus
 }

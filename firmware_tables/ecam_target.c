@@ -5,14 +5,21 @@
  *
  *   ecam_target lookup BLOB QUERIES OUT  QUERIES: int64 LE; OUT: (position, slope) int32 LE pairs.
  *                                        Every output is also checked against ecam_table_position,
- *                                        ecam_table_slope and the one-output lookups; the blob is
- *                                        also loaded at an odd address and must answer the same.
+ *                                        ecam_table_slope, the one-output lookups and the expanded
+ *                                        form (ecam_poly_position); the blob is also loaded at an
+ *                                        odd address and must answer the same.
  *   ecam_target status BLOB...           one line "<status>" per blob (ecam_table_init).
  *   ecam_target count BLOB WHAT QUERIES...
- *                                        WHAT = runtime | minimal: position lookups only, for an
- *                                        instruction counter; prints "<calls> <checksum>" per
- *                                        query file, in order. minimal reads the payload into
- *                                        native arrays and never calls ecam_table_init.
+ *                                        WHAT = runtime | minimal | poly | expanded | q16:
+ *                                        position lookups only, for an instruction counter;
+ *                                        prints "<calls> <checksum>" per query file, in order.
+ *                                        runtime: ecam_table_position; poly: ecam_poly_position
+ *                                        (the expanded form); minimal: ecam_minimal_<degree> on the
+ *                                        payload read into native arrays (no ecam_table_init);
+ *                                        expanded and q16: ecam_minimal_expanded_<degree> and
+ *                                        ecam_minimal_q16_<degree> on precomputed coefficients
+ *                                        (the expansion's int64 words; those shifted to whole
+ *                                        counts as int32).
  *   ecam_target stack BLOB QUERIES       largest stack (bytes) one ecam_table_position, one
  *                                        ecam_table_slope and one ecam_table_lookup call used, by
  *                                        stack painting (ARM M-profile only; "unsupported"
@@ -97,6 +104,8 @@ static int do_lookup(const char *blob_path, const char *query_path, const char *
 {
     run_input in;
     ecam_table odd;
+    ecam_poly poly;
+    int64_t *words;
     unsigned char *shifted;
     unsigned char *out;
     FILE *f;
@@ -116,6 +125,11 @@ static int do_lookup(const char *blob_path, const char *query_path, const char *
         fprintf(stderr, "ecam_target: the blob at an odd address was rejected\n");
         return 1;
     }
+    words = malloc(ecam_poly_bytes(&in.table) + 8u);
+    if (words == NULL || ecam_poly_init(&poly, &in.table, words, ecam_poly_bytes(&in.table)) != ECAM_OK) {
+        fprintf(stderr, "ecam_target: the expansion failed\n");
+        return 1;
+    }
     for (k = 0; k < in.count; k++) {
         const int64_t m = get_i64(in.query_bytes + 8u * k);
         int32_t position;
@@ -127,7 +141,8 @@ static int do_lookup(const char *blob_path, const char *query_path, const char *
         ecam_table_lookup(&in.table, m, &p2, NULL);
         ecam_table_lookup(&in.table, m, NULL, &s2);
         if (p2 != position || s2 != slope || ecam_table_position(&in.table, m) != position ||
-            ecam_table_slope(&in.table, m) != slope || ecam_table_position(&odd, m) != position) {
+            ecam_table_slope(&in.table, m) != slope || ecam_table_position(&odd, m) != position ||
+            ecam_poly_position(&poly, m) != position) {
             fprintf(stderr, "ecam_target: the lookups of master %lld disagree\n", (long long)m);
             return 1;
         }
@@ -140,6 +155,7 @@ static int do_lookup(const char *blob_path, const char *query_path, const char *
         return 2;
     }
     free(out);
+    free(words);
     free(shifted);
     free(in.blob_storage);
     free(in.query_bytes);
@@ -179,9 +195,44 @@ static int32_t *native_arrays(const unsigned char *blob, size_t len, uint32_t *p
     return arrays;
 }
 
-/* One query file's position lookups through the runtime or the minimal lookup. */
-static int count_file(const char *path, const ecam_table *table, const int32_t *arrays, uint32_t points,
-                      unsigned degree)
+/* What one count runs. */
+typedef struct {
+    const ecam_table *table;  /* runtime */
+    const ecam_poly *poly;    /* poly */
+    const int32_t *arrays;    /* minimal: native payload; q16: int32 coefficients */
+    const int64_t *words;     /* expanded: the expansion's words */
+    uint32_t points;
+    unsigned degree;
+    int q16;
+} count_subject;
+
+static int32_t count_one(const count_subject *c, int64_t query)
+{
+    const uint32_t m = (uint32_t)query; /* the minimal lookups: inside [0, M) by contract */
+
+    if (c->table != NULL) {
+        return ecam_table_position(c->table, query);
+    }
+    if (c->poly != NULL) {
+        return ecam_poly_position(c->poly, query);
+    }
+    if (c->words != NULL) {
+        return c->degree == 1u ? ecam_minimal_expanded_linear(c->words, m)
+               : c->degree == 3u ? ecam_minimal_expanded_cubic(c->words, m)
+                                 : ecam_minimal_expanded_quintic(c->words, m);
+    }
+    if (c->q16) {
+        return c->degree == 1u ? ecam_minimal_q16_linear(c->arrays, m)
+               : c->degree == 3u ? ecam_minimal_q16_cubic(c->arrays, m)
+                                 : ecam_minimal_q16_quintic(c->arrays, m);
+    }
+    return c->degree == 1u ? ecam_minimal_linear(c->arrays, m)
+           : c->degree == 3u ? ecam_minimal_cubic(c->arrays, c->arrays + c->points, m)
+                             : ecam_minimal_quintic(c->arrays, c->arrays + c->points, c->arrays + 2u * c->points, m);
+}
+
+/* One query file's position lookups through one subject. */
+static int count_file(const char *path, const count_subject *subject)
 {
     size_t len = 0;
     unsigned char *bytes = ecam_host_read_file(path, &len);
@@ -202,24 +253,8 @@ static int count_file(const char *path, const ecam_table *table, const int32_t *
     for (k = 0; k < count; k++) {
         queries[k] = get_i64(bytes + 8u * k);
     }
-    if (table != NULL) {
-        for (k = 0; k < count; k++) {
-            checksum = checksum * 31u + (uint32_t)ecam_table_position(table, queries[k]);
-        }
-    } else {
-        for (k = 0; k < count; k++) {
-            const uint32_t m = (uint32_t)queries[k]; /* inside [0, M) by contract */
-            int32_t p;
-
-            if (degree == 1u) {
-                p = ecam_minimal_linear(arrays, m);
-            } else if (degree == 3u) {
-                p = ecam_minimal_cubic(arrays, arrays + points, m);
-            } else {
-                p = ecam_minimal_quintic(arrays, arrays + points, arrays + 2u * points, m);
-            }
-            checksum = checksum * 31u + (uint32_t)p;
-        }
+    for (k = 0; k < count; k++) {
+        checksum = checksum * 31u + (uint32_t)count_one(subject, queries[k]);
     }
     printf("%lu %08lx%08lx\n", (unsigned long)count, (unsigned long)(checksum >> 32),
            (unsigned long)(checksum & 0xFFFFFFFFu));
@@ -228,41 +263,86 @@ static int count_file(const char *path, const ecam_table *table, const int32_t *
     return 0;
 }
 
+/* floor(x / 2^s) for the int32 coefficients of q16. */
+static int64_t asr64(int64_t x, unsigned s)
+{
+    return x >= 0 ? x >> s : ~(~x >> s);
+}
+
 static int do_count(const char *blob_path, const char *what, int files, char **query_paths)
 {
     size_t len = 0;
     unsigned char *blob = ecam_host_read_file(blob_path, &len);
     ecam_table table;
+    ecam_poly poly;
     int32_t *arrays = NULL;
-    uint32_t points = 0;
-    int runtime = strcmp(what, "runtime") == 0;
+    int32_t *q16 = NULL;
+    int64_t *words = NULL;
+    count_subject subject;
     int rc = 0;
     int i;
 
+    memset(&subject, 0, sizeof subject);
     if (blob == NULL || len < ECAM_HEADER_BYTES) {
         fprintf(stderr, "ecam_target: cannot read %s\n", blob_path);
         return 2;
     }
-    if (runtime) {
-        const int status = ecam_table_init(&table, blob, len);
+    subject.degree = blob[8];
+    if (strcmp(what, "minimal") == 0) {
+        arrays = native_arrays(blob, len, &subject.points);
+        if (arrays == NULL) {
+            return 2;
+        }
+        subject.arrays = arrays;
+    } else {
+        int status = ecam_table_init(&table, blob, len);
+        size_t bytes;
 
         if (status != ECAM_OK) {
             printf("error %d %s\n", status, ecam_status_name(status));
             return 1;
         }
-    } else if (strcmp(what, "minimal") == 0) {
-        arrays = native_arrays(blob, len, &points);
-        if (arrays == NULL) {
+        bytes = ecam_poly_bytes(&table);
+        words = malloc(bytes + 8u);
+        if (words == NULL) {
             return 2;
         }
-    } else {
-        fprintf(stderr, "ecam_target: count runtime|minimal, not %s\n", what);
-        return 2;
+        status = ecam_poly_init(&poly, &table, words, bytes);
+        if (status != ECAM_OK) {
+            printf("error %d %s\n", status, ecam_status_name(status));
+            return 1;
+        }
+        if (strcmp(what, "runtime") == 0) {
+            subject.table = &table;
+        } else if (strcmp(what, "poly") == 0) {
+            subject.poly = &poly;
+        } else if (strcmp(what, "expanded") == 0) {
+            subject.words = words;
+        } else if (strcmp(what, "q16") == 0) {
+            const size_t n = bytes / 8u;
+            size_t k;
+
+            q16 = malloc(n * sizeof *q16 + 4u);
+            if (q16 == NULL) {
+                return 2;
+            }
+            for (k = 0; k < n; k++) { /* whole counts (the fraction in Q16 carries the rest) */
+                const int64_t v = asr64(words[k], blob[12]);
+                q16[k] = v > INT32_MAX ? INT32_MAX : (v < INT32_MIN ? INT32_MIN : (int32_t)v);
+            }
+            subject.arrays = q16;
+            subject.q16 = 1;
+        } else {
+            fprintf(stderr, "ecam_target: count runtime|minimal|poly|expanded|q16, not %s\n", what);
+            return 2;
+        }
     }
     for (i = 0; i < files && rc == 0; i++) {
-        rc = count_file(query_paths[i], runtime ? &table : NULL, arrays, points, blob[8]);
+        rc = count_file(query_paths[i], &subject);
     }
     free(arrays);
+    free(q16);
+    free(words);
     free(blob);
     return rc;
 }
@@ -355,6 +435,6 @@ int main(int argc, char **argv)
         return do_stack(argv[2], argv[3]);
     }
     fprintf(stderr, "usage: ecam_target lookup BLOB QUERIES OUT | status BLOB... | "
-                    "count BLOB runtime|minimal QUERIES... | stack BLOB QUERIES\n");
+                    "count BLOB runtime|minimal|poly|expanded|q16 QUERIES... | stack BLOB QUERIES\n");
     return 2;
 }

@@ -54,7 +54,7 @@ STATUS_NAMES = {
     -24: "ECAM_E_PAYLOAD_BYTES", -25: "ECAM_E_POINT_RANGE", -26: "ECAM_E_HORNER_RANGE",
     -27: "ECAM_E_SUM_RANGE", -28: "ECAM_E_POSITION_RANGE", -29: "ECAM_E_SLOPE_HORNER_RANGE",
     -30: "ECAM_E_SLOPE_PRODUCT", -31: "ECAM_E_SLOPE_RANGE", -32: "ECAM_E_UNINITIALISED",
-    -33: "ECAM_E_BUSY", -34: "ECAM_E_NET_STROKE",
+    -33: "ECAM_E_BUSY", -34: "ECAM_E_NET_STROKE", -35: "ECAM_E_BUFFER",
 }  # fmt: skip
 CODES = {name: code for code, name in STATUS_NAMES.items()}
 OK, E_SHORT, E_MAGIC, E_VERSION = 0, -1, -2, -3
@@ -369,7 +369,7 @@ def test_misaligned_blob_and_api(build_dir):
         assert head["ready_state"] == "ready=1 status=0"
         for code, name in STATUS_NAMES.items():
             assert head[f"name{code}"] == name
-        assert head["name1"] == head["name-35"] == head["name-100"] == "ECAM_E_UNKNOWN"
+        assert head["name1"] == head["name-36"] == head["name-100"] == "ECAM_E_UNKNOWN"
 
 
 API_HARNESS = r"""
@@ -422,7 +422,7 @@ int main(int argc, char **argv)
     code = ecam_table_init(&reinit, broken, len);
     printf("reinit_failed=%d ready=%d %d\n", code, ecam_table_ready(&reinit),
            (int)ecam_table_position(&reinit, 0));
-    for (code = -35; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
+    for (code = -36; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
     printf("name-100=%s\n", ecam_status_name(-100));
     printf("misaligned_init=%d\n", ecam_table_init(&t, blob, len));
     printf("ready_state=ready=%d status=%d\n", ecam_table_ready(&t), ecam_table_status(&t));

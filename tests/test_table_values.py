@@ -107,3 +107,27 @@ def test_loading_a_large_table_is_linear_and_lean(drrd):
         assert loaded.points == points
         peaks[points] = peak - 2 * len(blob)  # the blob's copy and the table's arrays
     assert max(peaks.values()) < 24e6, peaks
+
+
+def test_horner_bits_is_64_or_32():
+    assert ecam.TableSpec(points=65).horner_bits == 64
+    assert ecam.TableSpec(points=65, horner_bits=32).horner_bits == 32
+    for bad in (16, 33, True, "32", 32.5):
+        with pytest.raises(ecam.InputError, match="horner_bits: .* should be 64 or 32"):
+            ecam.TableSpec(points=65, horner_bits=bad)
+
+
+def test_horner_bits_32_keeps_the_expansion_in_32_bit_words(drrd):
+    """The finest format whose expanded form's Horner values fit int32 (FORMAT.md "Expanded
+    form"); the 64-bit default's does not, and its certificate is the finer one."""
+    from ecam.table import narrow_horner
+
+    low, high = drrd.slave_range
+    common = dict(interp="quintic", points=257, master_counts=36864 * 2, slave_counts_per_unit=2**20 / (high - low))
+    wide, narrow = (ecam.compile_table(drrd, horner_bits=bits, **common) for bits in (64, 32))
+    assert narrow_horner(narrow) and not narrow_horner(wide)
+    assert narrow.format.work_bits < wide.format.work_bits
+    rows = narrow.coefficient_rows()
+    assert max(int(np.abs(r).max()) for r in rows[1:]) < 2**30 and int(np.abs(rows[0]).max()) < 2**31
+    assert wide.report["predicted_error_counts"] <= narrow.report["predicted_error_counts"] < 0.7
+    assert narrow.report["max_error_counts"] <= narrow.report["predicted_error_counts"]

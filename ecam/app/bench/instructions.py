@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from ecam.compile import compile_table
-from ecam.table import KINDS, CamTable
+from ecam.table import KINDS, CamTable, narrow_horner
 
 from ..firmware import FIRMWARE_DIR
 from .cross import M4_FLAGS, M4_MACHINE, TARGETS, build, missing, run
@@ -57,6 +57,12 @@ from .plan import MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
 
 NET_STROKE_CAM = "rotary_knife"  # golden tables in firmware_tables/vectors with a net stroke
 LIMITS = {"inside": 2.0, "wide": 3.0}
+# The expanded form's quintic against the minimal precomputed lookup (issue 27), on both targets.
+POLY_LIMITS = {"inside": 1.5, "wide": 2.0}
+# Tables compiled with horner_bits=32 (the expanded form's narrow kernels on 32-bit cores): the
+# seed cam at a stroke of 2^20 counts (the bench's 1e9-count stroke leaves no such format).
+NARROW_CAM = "drrd-h32"
+NARROW_STROKE_COUNTS = 2**20
 HOST_FLAGS = ("-O2", "-std=c99")
 M4_OPTS = ("-Os", "-O2")
 _SEED = 20261123
@@ -64,12 +70,23 @@ _SEED = 20261123
 
 @dataclass(frozen=True)
 class Measured:
-    """Mean instructions per call (None where not measured) and how."""
+    """Mean instructions per call (None where not measured) and how.
+
+    With ``expanded`` measured too (issue 27): ``poly_inside``/``poly_wide`` for
+    ``ecam_poly_position`` (the expanded form), ``expanded`` for its hand-written lookup
+    (``ecam_minimal_expanded_<degree>``, the same bits) and ``q16`` for the minimal lookup with
+    precomputed int32 coefficients and a Q16 fraction (``ecam_minimal_q16_<degree>``), the
+    cheapest of the same degree; ``checksums_match`` then also covers poly == runtime (inside and
+    wide) and expanded == poly."""
 
     runtime_inside: float
     runtime_wide: float
     minimal: float
     checksums_match: bool
+    poly_inside: float | None = None
+    poly_wide: float | None = None
+    expanded: float | None = None
+    q16: float | None = None
 
     @property
     def ratio_inside(self) -> float:
@@ -78,6 +95,21 @@ class Measured:
     @property
     def ratio_wide(self) -> float:
         return self.runtime_wide / self.minimal
+
+    @property
+    def poly_ratio_inside(self) -> float:
+        """Expanded form against the minimal precomputed lookup, masters inside the period."""
+        return self.poly_inside / self.q16
+
+    @property
+    def poly_ratio_wide(self) -> float:
+        """Expanded form (any int64 master) against the minimal precomputed lookup."""
+        return self.poly_wide / self.q16
+
+    @property
+    def runtime_ratio_q16(self) -> float:
+        """The Hermite runtime against the minimal precomputed lookup, inside the period."""
+        return self.runtime_inside / self.q16
 
 
 def minimal_defines(fmt) -> list[str]:
@@ -142,9 +174,11 @@ def _compile(compiler: str, flags: list, source: str, obj: Path, what: str, reus
     return obj
 
 
-def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | None = None) -> Measured:
+def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | None = None,
+                expanded: bool = False) -> Measured:
     """x86-64 counts of one table (cc -O2), per call; ecam_table.o, ecam_target.o and its file
-    reader ecam_host_io.o are built once into `shared` (default: `directory`)."""
+    reader ecam_host_io.o are built once into `shared` (default: `directory`). With `expanded`,
+    the expanded form and the precomputed-coefficient yardsticks too."""
     cc = host_compiler()
     shared = shared or directory
     exe = directory / "ecam_count_host"
@@ -159,9 +193,19 @@ def host_counts(directory: Path, blob: bytes, fmt, count: int, shared: Path | No
     inside, wide = write_queries(directory, fmt.master_counts, count)
     name = fmt.interp
     runtime_in, out_in = _callgrind(exe, ["count", "table.bin", "runtime", inside], "ecam_table_position", directory)
-    runtime_wide, _ = _callgrind(exe, ["count", "table.bin", "runtime", wide], "ecam_table_position", directory)
+    runtime_wide, out_wide = _callgrind(exe, ["count", "table.bin", "runtime", wide], "ecam_table_position", directory)
     minimal, out_min = _callgrind(exe, ["count", "table.bin", "minimal", inside], f"ecam_minimal_{name}", directory)
-    return Measured(runtime_in / count, runtime_wide / count, minimal / count, out_in.split() == out_min.split())
+    match = out_in.split() == out_min.split()
+    if not expanded:
+        return Measured(runtime_in / count, runtime_wide / count, minimal / count, match)
+    poly_in, out_poly = _callgrind(exe, ["count", "table.bin", "poly", inside], "ecam_poly_position", directory)
+    poly_wide, out_poly_wide = _callgrind(exe, ["count", "table.bin", "poly", wide], "ecam_poly_position", directory)
+    words, out_words = _callgrind(exe, ["count", "table.bin", "expanded", inside], f"ecam_minimal_expanded_{name}",
+                                  directory)
+    q16, _ = _callgrind(exe, ["count", "table.bin", "q16", inside], f"ecam_minimal_q16_{name}", directory)
+    match = match and out_poly.split() == out_in.split() == out_words.split() and out_poly_wide.split() == out_wide.split()
+    return Measured(runtime_in / count, runtime_wide / count, minimal / count, match, poly_in / count,
+                    poly_wide / count, words / count, q16 / count)
 
 
 # --- Cortex-M4: QEMU instruction trace -----------------------------------------------------------
@@ -314,18 +358,25 @@ def call_counts(elf: Path, trace: Path, entry: str) -> np.ndarray:
     return np.array(counts, dtype=np.int64)
 
 
-def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2", shared: Path | None = None) -> Measured:
+def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2", shared: Path | None = None,
+              expanded: bool = False) -> Measured:
     """Cortex-M4 counts of one table, per call; the objects that do not depend on the table are
     built once into `shared` (default: `directory`). Two QEMU runs: the runtime on both query
-    sets (its calls split by position in the log), the minimal lookup on the inside set."""
+    sets (its calls split by position in the log), the minimal lookup on the inside set; with
+    `expanded`, three more: the expanded form on both sets, and its two yardsticks."""
     target = TARGETS["cortex-m4"]
     objects = _objects(directory, opt, minimal_defines(fmt), shared)
     elf = _m4_link(directory, opt, objects, f"ecam_count_m4{opt}.elf")
     (directory / "table.bin").write_bytes(blob)
     inside, wide = write_queries(directory, fmt.master_counts, count)
     runs = {}
-    for what, entry, obj, queries in (("runtime", "ecam_table_position", objects["ecam_table"], [inside, wide]),
-                                      ("minimal", f"ecam_minimal_{fmt.interp}", objects["ecam_minimal"], [inside])):
+    subjects = [("runtime", "ecam_table_position", objects["ecam_table"], [inside, wide]),
+                ("minimal", f"ecam_minimal_{fmt.interp}", objects["ecam_minimal"], [inside])]
+    if expanded:
+        subjects += [("poly", "ecam_poly_position", objects["ecam_table"], [inside, wide]),
+                     ("expanded", f"ecam_minimal_expanded_{fmt.interp}", objects["ecam_minimal"], [inside]),
+                     ("q16", f"ecam_minimal_q16_{fmt.interp}", objects["ecam_minimal"], [inside])]
+    for what, entry, obj, queries in subjects:
         trace = directory / "trace.log"
         ranges = count_ranges(elf, [obj], entry)
         proc = run(target, elf, ["count", "table.bin", what, *queries], directory, trace=trace, ranges=ranges)
@@ -339,7 +390,14 @@ def m4_counts(directory: Path, blob: bytes, fmt, count: int, opt: str = "-O2", s
                       proc.stdout.splitlines())
     (runtime_inside, runtime_wide), lines = runs["runtime"]
     (minimal,), minimal_lines = runs["minimal"]
-    return Measured(runtime_inside, runtime_wide, minimal, lines[0].split() == minimal_lines[0].split())
+    match = lines[0].split() == minimal_lines[0].split()
+    if not expanded:
+        return Measured(runtime_inside, runtime_wide, minimal, match)
+    (poly_inside, poly_wide), poly_lines = runs["poly"]
+    (words,), word_lines = runs["expanded"]
+    (q16,), _ = runs["q16"]
+    match = match and poly_lines == lines and word_lines[0].split() == lines[0].split()
+    return Measured(runtime_inside, runtime_wide, minimal, match, poly_inside, poly_wide, words, q16)
 
 
 def _stack_usage(su: Path) -> dict:
@@ -408,6 +466,11 @@ def bench_tables(quick: bool) -> list:
         path = FIRMWARE_DIR / "vectors" / f"{NET_STROKE_CAM}_{kind}.bin"
         if path.is_file():
             out.append((NET_STROKE_CAM, CamTable.from_bytes(path.read_bytes())))
+    for points in (145,) if quick else (145, 97):
+        for kind in KINDS:
+            out.append((NARROW_CAM, compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
+                                                  slave_counts_per_unit=NARROW_STROKE_COUNTS / (high - low),
+                                                  horner_bits=32)))  # fmt: skip
     return out
 
 
@@ -423,13 +486,31 @@ def _row(target: str, compiler: str, cam: str, table, m: Measured, count: int) -
             f"inside the period / {m.runtime_wide:.1f} any int64, minimal {m.minimal:.1f}: "
             f"{m.ratio_inside:.2f}x / {m.ratio_wide:.2f}x (limits {LIMITS['inside']:g}x / {LIMITS['wide']:g}x): "
             f"{'met' if met else 'MISSED'}{'' if m.checksums_match else '; CHECKSUMS DIFFER'}")
-    return {"kind": "note", "topic": "instructions", "target": target, "compiler": compiler, "cam": cam,
-            "interp": table.interp, "points": table.points, "step_counts": table.format.step_counts,
-            "net_stroke": str(table.format.net_stroke), "queries": count,
-            "instructions_runtime_inside": m.runtime_inside,
-            "instructions_runtime_wide": m.runtime_wide, "instructions_minimal": m.minimal,
-            "ratio_inside": m.ratio_inside, "ratio_wide": m.ratio_wide, "limit_inside": LIMITS["inside"],
-            "limit_wide": LIMITS["wide"], "checksums_match": m.checksums_match, "met": met, "text": text}  # fmt: skip
+    row = {"kind": "note", "topic": "instructions", "target": target, "compiler": compiler, "cam": cam,
+           "interp": table.interp, "points": table.points, "step_counts": table.format.step_counts,
+           "net_stroke": str(table.format.net_stroke), "queries": count,
+           "instructions_runtime_inside": m.runtime_inside,
+           "instructions_runtime_wide": m.runtime_wide, "instructions_minimal": m.minimal,
+           "ratio_inside": m.ratio_inside, "ratio_wide": m.ratio_wide, "limit_inside": LIMITS["inside"],
+           "limit_wide": LIMITS["wide"], "checksums_match": m.checksums_match, "met": met, "text": text}  # fmt: skip
+    if m.q16 is not None:
+        quintic = table.interp == "quintic"
+        poly_met = (m.poly_ratio_inside <= POLY_LIMITS["inside"] and m.poly_ratio_wide <= POLY_LIMITS["wide"]
+                    if quintic else None)  # the issue's limits are for the quintic
+        row.update({"horner_bits": 32 if narrow_horner(table) else 64,
+                    "instructions_poly_inside": m.poly_inside, "instructions_poly_wide": m.poly_wide,
+                    "instructions_expanded": m.expanded, "instructions_q16": m.q16,
+                    "ratio_poly_inside": m.poly_ratio_inside, "ratio_poly_wide": m.poly_ratio_wide,
+                    "ratio_runtime_q16": m.runtime_ratio_q16,
+                    "limit_poly_inside": POLY_LIMITS["inside"] if quintic else None,
+                    "limit_poly_wide": POLY_LIMITS["wide"] if quintic else None, "poly_met": poly_met})
+        row["text"] += (f"; expanded form {m.poly_inside:.1f} / {m.poly_wide:.1f}, its hand-written lookup "
+                        f"{m.expanded:.1f}, minimal precomputed Q16 {m.q16:.1f}: {m.poly_ratio_inside:.2f}x / "
+                        f"{m.poly_ratio_wide:.2f}x (Hermite runtime {m.runtime_ratio_q16:.2f}x)"
+                        + ("" if poly_met is None else
+                           f" (limits {POLY_LIMITS['inside']:g}x / {POLY_LIMITS['wide']:g}x): "
+                           f"{'met' if poly_met else 'MISSED'}"))
+    return row
 
 
 def instruction_rows(directory: Path, quick: bool) -> list[dict]:
@@ -449,7 +530,7 @@ def instruction_rows(directory: Path, quick: bool) -> list[dict]:
             work = directory / f"host_{k}"
             work.mkdir()
             try:
-                measured = host_counts(work, table.to_bytes(), table.format, count, shared=shared)
+                measured = host_counts(work, table.to_bytes(), table.format, count, shared=shared, expanded=True)
                 rows.append(_row("x86-64", "cc -O2, callgrind", cam, table, measured, count))
             except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
                 rows.append({"kind": "note", "topic": "instructions", "target": "x86-64",
@@ -463,7 +544,7 @@ def instruction_rows(directory: Path, quick: bool) -> list[dict]:
         work = directory / f"m4_{k}"
         work.mkdir()
         try:
-            measured = m4_counts(work, table.to_bytes(), table.format, count, shared=shared)
+            measured = m4_counts(work, table.to_bytes(), table.format, count, shared=shared, expanded=True)
             rows.append(_row("cortex-m4", f"arm-none-eabi-gcc -O2, QEMU {M4_MACHINE} trace", cam, table, measured, count))
         except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
             rows.append({"kind": "note", "topic": "instructions", "target": "cortex-m4",

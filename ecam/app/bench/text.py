@@ -102,6 +102,22 @@ def _instruction_lines(rows: list[dict]) -> list[str]:
                      f"{'-' if net == '0' else net:>8s} | {r['instructions_runtime_inside']:6.1f} "
                      f"{r['instructions_runtime_wide']:6.1f} {r['instructions_minimal']:7.1f} | "
                      f"{r['ratio_inside']:5.2f}x {r['ratio_wide']:7.2f}x  {verdict}")
+    expanded = [r for r in table if "instructions_q16" in r]
+    if expanded:
+        lines += ["", "the expanded form (ecam_poly_position, each interval's polynomial precomputed into RAM at init)",
+                  "against the minimal lookup of the same degree with precomputed coefficients (int32 words, Q16",
+                  "fraction, no wrap: ecam_minimal_q16_*) and against its own format hand-written",
+                  "(ecam_minimal_expanded_*, the same bits); horner 32 = a table compiled with horner_bits=32,",
+                  "whose expansion runs in 32-bit words on 32-bit cores; limits for quintic 1.5x inside, 2x wide:"]
+        head = (f"  {'target':9s} {'cam':16s} {'interp':7s} {'points':>6s} {'horner':>6s} | {'inside':>6s} {'wide':>6s} "
+                f"{'same':>6s} {'q16':>6s} | {'in/q16':>6s} {'wide/q16':>8s} {'hermite/q16':>11s}  verdict")
+        lines += [head, "  " + "-" * (len(head) - 2)]
+        for r in expanded:
+            verdict = {True: "met", False: "MISSED", None: "-"}[r["poly_met"]]
+            lines.append(f"  {r['target']:9s} {r.get('cam', ''):16s} {r['interp']:7s} {r['points']:6d} "
+                         f"{r['horner_bits']:6d} | {r['instructions_poly_inside']:6.1f} {r['instructions_poly_wide']:6.1f} "
+                         f"{r['instructions_expanded']:6.1f} {r['instructions_q16']:6.1f} | {r['ratio_poly_inside']:5.2f}x "
+                         f"{r['ratio_poly_wide']:7.2f}x {r['ratio_runtime_q16']:10.2f}x  {verdict}")
     footprint = [r for r in counted if "flash_bytes" in r]
     if footprint:
         lines += ["", "Cortex-M4 footprint of ecam_table.o (flash, static RAM, struct sizes) and stack per call",

@@ -7,6 +7,13 @@ only once every member has been written, so they appear together or not at all. 
 is a symbolic link to a regular file is replaced by the new file, never followed: its target is
 left untouched.
 
+A group is switched in one step for its readers by a manifest written last
+(:func:`write_group`): before the first rename the old manifest goes, after the last the new one
+names every member with its size and SHA-256, so a reader that checks it (:func:`check_group`)
+never takes a new header beside an old blob, as a kill between two renames left them (issue 28,
+item 6). Temporaries a killed writer left behind (``.NAME.*.tmp`` beside an output, older than
+:data:`STALE_TEMPORARY_S`) are removed by the next write of that output.
+
 What an output must never replace is refused first, in one line (:func:`check_outputs`): a
 device node, FIFO, socket or directory (``-o /dev/null`` as root made the device a regular
 file), a symbolic link to one of those or to a process's open file (``--junit /dev/stdout``,
@@ -17,15 +24,26 @@ the rename would silently replace.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import stat
 import tempfile
+import time
 from pathlib import Path
 
 from .errors import InputError
 from .validate import show
 
-__all__ = ["write_files", "check_outputs"]
+__all__ = ["write_files", "write_group", "check_group", "check_outputs", "STALE_TEMPORARY_S"]
+
+#: A temporary of an output older than this [s] is a killed writer's, removed by the next write
+#: (a writer running now renames its own within a second or so).
+STALE_TEMPORARY_S = 600.0
+#: The manifest's format.
+GROUP_FORMAT = "ecam output group 1"
+#: Largest manifest check_group reads [bytes].
+_MAX_MANIFEST_BYTES = 1 << 20
 
 _KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a directory"))
@@ -133,11 +151,118 @@ def write_files(contents: dict, inputs=()) -> None:
         and no temporary file is left behind.
     """
     check_outputs(contents, inputs)
+    _remove_stale_temporaries(contents)
+    staged = _stage(contents)
+    _commit(staged)
+
+
+def write_group(contents: dict, manifest, inputs=()) -> Path:
+    """Write ``{path: text or bytes}`` as one group with its manifest, written last.
+
+    Parameters
+    ----------
+    contents : dict
+        The members, all in one directory.
+    manifest : path
+        The manifest file (JSON: every member's name, size and SHA-256, sorted; no date).
+    inputs : iterable of path
+        Files the group was made from (refused as outputs).
+
+    Returns
+    -------
+    Path
+        The manifest.
+
+    Raises
+    ------
+    InputError, OSError
+        As :func:`write_files`; until the new manifest is in place no manifest names the
+        members, so a reader that checks it refuses a group half switched.
+    """
+    manifest = Path(manifest)
+    check_outputs([*contents, manifest], inputs)
+    _remove_stale_temporaries([*contents, manifest])
+    data = {Path(path): _bytes(content) for path, content in contents.items()}
+    listing = {"format": GROUP_FORMAT, "files": [
+        {"name": path.name, "bytes": len(blob), "sha256": hashlib.sha256(blob).hexdigest()}
+        for path, blob in sorted(data.items(), key=lambda item: item[0].name)]}
+    staged = _stage(data)
+    try:
+        manifest.unlink(missing_ok=True)  # from here until the new one, the group is in flux
+    except BaseException:
+        _discard(staged)
+        raise
+    _commit(staged)
+    _commit(_stage({manifest: json.dumps(listing, indent=1, sort_keys=True) + "\n"}))
+    return manifest
+
+
+def check_group(manifest) -> list[Path]:
+    """The members of the group a manifest names, each checked against it.
+
+    Raises
+    ------
+    InputError
+        A missing or malformed manifest, or a member missing or not the one the manifest names
+        (a group half switched by a killed writer, or edited since).
+    """
+    manifest = Path(manifest)
+    shown = show(str(manifest))
+    try:
+        with open(manifest, "rb") as handle:
+            listing = json.loads(handle.read(_MAX_MANIFEST_BYTES + 1)[:_MAX_MANIFEST_BYTES])
+        files = listing["files"] if listing.get("format") == GROUP_FORMAT else None
+        if not isinstance(files, list):
+            raise ValueError("no file list")
+        members = [(manifest.parent / entry["name"], entry["bytes"], entry["sha256"]) for entry in files]
+    except FileNotFoundError:
+        raise InputError(f"output group {shown}: no manifest (a write did not finish)") from None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise InputError(f"output group {shown} cannot be read: {exc}") from None
+    for path, size, digest in members:
+        try:
+            blob = path.read_bytes() if path.stat().st_size == size else None
+        except OSError:
+            blob = None
+        if blob is None or hashlib.sha256(blob).hexdigest() != digest:
+            raise InputError(f"output group {shown}: {show(path.name)} is not the file the manifest "
+                             "names (a write did not finish, or it was changed)")
+    return [path for path, _, _ in members]
+
+
+def _bytes(content) -> bytes:
+    return content.encode("utf-8") if isinstance(content, str) else bytes(content)
+
+
+def _remove_stale_temporaries(paths) -> None:
+    """Remove what a killed writer of these outputs left (``.NAME.*.tmp``, older than
+    :data:`STALE_TEMPORARY_S`)."""
+    now = time.time()
+    for path in paths:
+        path = Path(path)
+        try:
+            leftovers = list(path.parent.glob(f".{_glob_escape(path.name)}.*.tmp"))
+        except OSError:
+            continue
+        for leftover in leftovers:
+            try:
+                if now - os.lstat(leftover).st_mtime > STALE_TEMPORARY_S:
+                    os.unlink(leftover)
+            except OSError:
+                pass  # gone already, or not ours to remove
+
+
+def _glob_escape(name: str) -> str:
+    return "".join(f"[{c}]" if c in "*?[" else c for c in name)
+
+
+def _stage(contents: dict) -> list[tuple[str, Path]]:
+    """Each member written to a temporary beside it and flushed: [(temporary, path)]."""
     staged: list[tuple[str, Path]] = []
     try:
         for path, content in contents.items():
             path = Path(path)
-            data = content.encode("utf-8") if isinstance(content, str) else bytes(content)
+            data = _bytes(content)
             fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             staged.append((temporary, path))
             with os.fdopen(fd, "wb") as handle:
@@ -145,12 +270,25 @@ def write_files(contents: dict, inputs=()) -> None:
                 handle.flush()
                 os.fsync(handle.fileno())
             os.chmod(temporary, 0o644)  # mkstemp makes 0600; outputs are ordinary files
+    except BaseException:
+        _discard(staged)
+        raise
+    return staged
+
+
+def _commit(staged: list[tuple[str, Path]]) -> None:
+    """Rename the temporaries over their outputs; on a failure, remove those not renamed."""
+    try:
         for temporary, path in staged:
             os.replace(temporary, path)
     except BaseException:
-        for temporary, _ in staged:
-            try:
-                os.unlink(temporary)
-            except FileNotFoundError:
-                pass
+        _discard(staged)
         raise
+
+
+def _discard(staged: list[tuple[str, Path]]) -> None:
+    for temporary, _ in staged:
+        try:
+            os.unlink(temporary)
+        except FileNotFoundError:
+            pass

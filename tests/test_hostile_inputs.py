@@ -313,3 +313,96 @@ def test_a_control_character_in_a_scene_name_is_refused_and_junit_stays_well_for
     xml = junit_xml([(tmp_path / "bad\x01\x1bname.toml", ecam.CamFileError("bad\x02 file"), 0.1)])
     root = ET.fromstring(xml.encode("utf-8"))
     assert root.find("testsuite").get("name") == "bad\\x01\\x1bname"
+
+
+# --- item 3: a point count near its limit -------------------------------------------------------
+def test_more_points_than_the_master_grid_holds_are_refused_before_the_placement(tmp_path, monkeypatch):
+    """1 000 001 points on a cam of 36 864 master counts: before, 40 spreads of a million knots
+    (261 s, 6.3 GB) came before the refusal. Now no placement runs."""
+    import ecam.export.certify as certify
+
+    def placement(*args, **kwargs):
+        raise AssertionError("the placement ran")
+
+    monkeypatch.setattr(certify, "equidistributed", placement)
+    line = one_line("export", COMBINATION, "--to", "csv", "--points", "1000001", "-o", tmp_path / "x.csv")
+    assert "points: 1000001 should be at most 36865" in line
+
+
+@pytest.mark.slow
+def test_an_export_takes_memory_linear_in_its_points_with_a_small_constant():
+    """tracemalloc's peak for 4 097 and 16 385 points of a csv export: the 12 288 points between
+    them cost under 2 kB each (the file itself holds about 40 bytes a point). Before, the
+    predicted bounds and the dense measurement held every interval's 257 and 65 samples at once:
+    about 10 kB a point, MemoryError at the documented 2^20 + 1."""
+    import tracemalloc
+
+    from ecam.export import export_cam
+
+    profile = ecam.load_cam(COMBINATION)
+    peaks = []
+    for points in (4097, 16385):
+        tracemalloc.start()
+        try:
+            export_cam(profile, "csv", points=points, master_counts=2**21, name="x")
+            peaks.append(tracemalloc.get_traced_memory()[1])
+        finally:
+            tracemalloc.stop()
+    assert (peaks[1] - peaks[0]) / (16385 - 4097) < 2048, peaks
+
+
+# --- item 6: an output group switches in one step for a reader that checks its manifest ----------
+KILLED_WRITER = """
+import os, signal, sys
+from pathlib import Path
+from ecam.atomic_files import write_group
+out = Path(sys.argv[1])
+real, calls = os.replace, []
+
+def replace(src, dst):
+    calls.append(dst)
+    if len(calls) == 2:  # killed between the renames of the group
+        os.kill(os.getpid(), signal.SIGKILL)
+    real(src, dst)
+
+os.replace = replace
+write_group({out / "t.h": "new header", out / "t.bin": b"new blob", out / "t.json": "{}"}, out / "t.group.json")
+"""
+
+
+def test_a_group_killed_between_its_renames_is_refused_by_its_manifest_and_its_temporaries_go(tmp_path):
+    from ecam.atomic_files import STALE_TEMPORARY_S, check_group, write_group
+
+    old = {tmp_path / "t.h": "old header", tmp_path / "t.bin": b"old blob", tmp_path / "t.json": "[]"}
+    write_group(old, tmp_path / "t.group.json")
+    assert check_group(tmp_path / "t.group.json") == sorted(old, key=lambda p: p.name)
+    killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(tmp_path)], capture_output=True, timeout=60)
+    assert killed.returncode == -9, killed.stderr
+    # a new header beside the old blob: the manifest that named the old group is gone
+    assert (tmp_path / "t.bin").read_text() == "new blob" or (tmp_path / "t.h").read_text() == "new header"
+    with pytest.raises(ecam.InputError, match="no manifest"):
+        check_group(tmp_path / "t.group.json")
+    leftovers = [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    assert leftovers
+    for leftover in leftovers:  # as old as a killed writer's after a while
+        os.utime(leftover, (0, 0))
+    write_group(old, tmp_path / "t.group.json")
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    assert check_group(tmp_path / "t.group.json")
+    (tmp_path / "t.bin").write_bytes(b"edited")
+    with pytest.raises(ecam.InputError, match="'t.bin' is not the file the manifest names"):
+        check_group(tmp_path / "t.group.json")
+    assert STALE_TEMPORARY_S > 0
+
+
+def test_compile_writes_its_group_with_a_manifest_last(tmp_path):
+    from ecam.atomic_files import check_group
+
+    status, out, err, _ = run("compile", COMBINATION, "--points", "65", "--format", "c,bin,csv,json", "-o", tmp_path,
+                              "--json")
+    assert status == 0, err
+    import json
+
+    summary = json.loads(out)
+    members = check_group(summary["manifest"])
+    assert sorted(map(str, members)) == sorted(summary["files"])

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from ecam import validate
-from ecam.atomic_files import check_outputs, write_files
+from ecam.atomic_files import check_outputs, write_group
 from ecam.camfile import load_cam
 from ecam.compile import compile_table
 from ecam.errors import InputError
@@ -179,7 +179,8 @@ def cmd_compile(args) -> int:
             raise InputError(f"--format {validate.show(f)} should be one of {', '.join(EXPORTERS)}")
     name = profile.name or Path(args.cam).stem
     # before the work: an output that is the cam itself or a device is refused at once
-    check_outputs(table_paths(name, Path(args.output), formats), [args.cam])
+    check_outputs([*table_paths(name, Path(args.output), formats), manifest_path(name, Path(args.output))],
+                  [args.cam])
     table = compile_table(
         profile, interp=args.interp, points=args.points, tolerance=args.tolerance,
         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
@@ -187,12 +188,14 @@ def cmd_compile(args) -> int:
     )
     files = write_table(table, name, Path(args.output), formats, inputs=[args.cam])
     summary = table_summary(table, files)
+    summary["manifest"] = str(manifest_path(name, Path(args.output)))
     if args.json:
         print(json.dumps(summary, indent=1))
     else:
         print(certificate_text(name, table))
         for path in files:
             print(f"  wrote {path}")
+        print(f"  wrote {summary['manifest']} (the group's manifest, written last)")
     return 0
 
 
@@ -201,13 +204,20 @@ def table_paths(name, directory: Path, formats) -> list[Path]:
     return [directory / (identifier(name) + EXPORTERS[f][0]) for f in formats]
 
 
+def manifest_path(name, directory: Path) -> Path:
+    """The manifest of the files :func:`write_table` writes (``ecam.atomic_files.write_group``)."""
+    return directory / (identifier(name) + ".group.json")
+
+
 def write_table(table, name, directory: Path, formats, inputs=()) -> list[str]:
+    """Write the table in ``formats`` as one group, its manifest last (a reader checks it with
+    ``ecam.atomic_files.check_group``); returns the files, the manifest not included."""
     contents = {}
     for f, path in zip(formats, table_paths(name, directory, formats)):
         contents[path] = EXPORTERS[f][1](table, name)
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        write_files(contents, inputs)
+        write_group(contents, manifest_path(name, directory), inputs)
     except OSError as exc:
         raise InputError(f"output directory {validate.show(str(directory))} cannot be written: "
                          f"{exc.strerror or exc}") from None

@@ -345,7 +345,11 @@ def _bounds(cam: Cam, n: int, a, b, left, right, *, extra: float = 0.0, inside=N
                   np.stack([cam(b, k, "left") for k in range(r)], axis=1))
     scale = h[:, None] ** np.arange(r)
     delta = np.concatenate([(left - inside[0]) * scale, (right - inside[1]) * scale], axis=1)
-    data = matmul(np.abs(delta), _basis_on(n, _T.size)).max(axis=1) * _SAMPLE_MARGIN
+    # row by row the same numbers, a block of intervals at a time: the product is 257 samples
+    # per interval (2 kB), gigabytes at once for a million points (issue 28, item 3)
+    basis = _basis_on(n, _T.size)
+    data = np.concatenate([matmul(np.abs(delta[start:start + _DENSE_BLOCK]), basis).max(axis=1)
+                           for start in range(0, max(1, delta.shape[0]), _DENSE_BLOCK)]) * _SAMPLE_MARGIN
     # the cam and the consumer both evaluate in float64: a few ulp of the largest position
     roundoff = 64 * 2.0**-52 * (cam.peak + 1.0)
     return smooth + jumps + data + roundoff + extra
@@ -379,18 +383,30 @@ def _jump_costs(cam: Cam, n: int, a, b, h) -> np.ndarray:
 
 
 # -- the measured error -------------------------------------------------------------------------------
+#: Intervals whose dense samples measure_float holds at once (a few MB whatever the table's size).
+_DENSE_BLOCK = 4096
+
+
 def measure_float(cam: Cam, hermite: Hermite, per_interval: int = DENSE_PER_INTERVAL):
     """Largest |consumer - cam| (user units) for a consumer that evaluates its interpolant at any
     master position: ``per_interval`` + 1 samples in every interval, then a golden-section search for
     the extremum around each interval's largest sample. Returns (error, master, interval)."""
     n_int = hermite.x.size - 1
     t = np.arange(per_interval + 1) / per_interval
-    i = np.repeat(np.arange(n_int), t.size)
-    tt = np.tile(t, n_int)
-    x = hermite.x[i] + tt * hermite.widths[i]
-    exact = np.where(tt >= 1.0, cam(x, 0, "left"), cam(x, 0, "right"))
-    error = np.abs(hermite.at(i, tt) - exact).reshape(n_int, t.size)
-    best = error.argmax(axis=1)
+    # The dense samples a block of intervals at a time: all at once they took some 8 kB per
+    # interval, gigabytes at a million points (issue 28, item 3); each sample is computed alone,
+    # so the blocks give the very same numbers.
+    largest = np.empty(n_int)
+    best = np.empty(n_int, dtype=np.int64)
+    for start in range(0, n_int, _DENSE_BLOCK):
+        block = np.arange(start, min(n_int, start + _DENSE_BLOCK))
+        i = np.repeat(block, t.size)
+        tt = np.tile(t, block.size)
+        x = hermite.x[i] + tt * hermite.widths[i]
+        exact = np.where(tt >= 1.0, cam(x, 0, "left"), cam(x, 0, "right"))
+        error = np.abs(hermite.at(i, tt) - exact).reshape(block.size, t.size)
+        best[block] = error.argmax(axis=1)
+        largest[block] = error.max(axis=1)
     lo = np.clip((best - 1) / per_interval, 0.0, 1.0)
     hi = np.clip((best + 1) / per_interval, 0.0, 1.0)
     intervals = np.arange(n_int)
@@ -412,8 +428,8 @@ def measure_float(cam: Cam, hermite: Hermite, per_interval: int = DENSE_PER_INTE
                         np.where(left, value, fd), np.where(left, fc, value))
     refined = np.maximum(fc, fd)
     refined_t = np.where(fc >= fd, c, d)
-    per = np.maximum(error.max(axis=1), refined)
-    where_t = np.where(refined > error.max(axis=1), refined_t, t[best])
+    per = np.maximum(largest, refined)
+    where_t = np.where(refined > largest, refined_t, t[best])
     k = int(per.argmax())
     master = float(hermite.x[k] + where_t[k] * hermite.widths[k])
     return float(per[k]), master, k
@@ -718,6 +734,12 @@ def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: i
         knots = next((count for count in range(points + 1, 1, -1) if file_points(count) == points), None)
         if knots is None:
             raise InputError(f"points: {points} should be at least {file_points(2)}")
+        # Before the placement, which tries up to 40 spreads of that many knots (minutes at a
+        # million) before it finds that the grid has no room for them.
+        if knots > grid // min_step + 1:
+            raise InputError(f"points: {points} should be at most {file_points(grid // min_step + 1)}: "
+                             f"{knots} knots {min_step} master count(s) apart do not fit a period of {grid} "
+                             "counts (give more --master-counts or fewer points)")
         return spread(knots)
     most = min(limit + 1, grid // min_step + 1)  # no more knots than the grid holds
     while file_points(most) > limit:

@@ -31,6 +31,9 @@ Data exported beside the functions and classes:
   quintic 5); ``INTERPOLATIONS``: every ``interp`` a :class:`TableSpec` accepts (the kinds and
   ``"auto"``).
 
+Cams from points: :func:`fit_points` (a quintic smoothing spline, jerk continuous, its deviation
+certified; :mod:`ecam.points` reads point tables) gives a cam of one ``law = "spline"`` segment.
+
 Submodules: :mod:`ecam.design` (combination curves, modified-sine and dwell-rise-return-dwell
 cams), :mod:`ecam.mechanics` (:class:`Mechanics`, reflected inertia, the two-mass mode, the
 coupling checks), :mod:`ecam.export` (C header, blob, CSV, JSON, vendor tables; imported on
@@ -42,6 +45,7 @@ from .camfile import load_cam, parse_cam
 from .certificate import Certificate, Measurement
 from .compile import compile_table
 from .errors import CamFileError, EcamError, InputError, SimulationError, TableFormatError
+from .fit import FitResult, fit_points
 from .laws import DWELL, LAW_NAMES, LAWS, Law, law, polynomial_from_boundary
 from .mechanics import Mechanics
 from .profile import CamProfile, CheckReport, Discontinuity, Segment
@@ -53,5 +57,5 @@ __version__ = "0.1.0"
 __all__ = [
     "CamFileError", "CamProfile", "CamTable", "Certificate", "CheckReport", "DWELL", "Discontinuity", "EcamError", "InputError",
     "INTERPOLATIONS", "KINDS", "LAWS", "LAW_NAMES", "Law", "Measurement", "Mechanics", "Segment", "SimulationError", "TableFormat", "TableFormatError", "TableSpec",
-    "compile_table", "design", "law", "load_cam", "mechanics", "parse_cam", "polynomial_from_boundary",
+    "FitResult", "compile_table", "design", "fit_points", "law", "load_cam", "mechanics", "parse_cam", "polynomial_from_boundary",
 ]

@@ -21,6 +21,7 @@ from .errors import CamFileError
 from .laws import LAW_NAMES, LAWS
 from .profile import (BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_master_period, check_segment_count,
                       check_span, check_tiling)
+from .spline import spline_law
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
@@ -34,11 +35,12 @@ CAMS_DIR = Path(__file__).resolve().parent / "cams"
 _TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "net_stroke", "table",
              "segment"}
 _BOUNDARY_FIELDS = tuple(f"{end}_{what}" for end in ("start", "end") for what in BOUNDARY_KEYS)
+_SPLINE_FIELDS = ("knots", "derivatives")  # a spline segment's (ecam.spline), and only its
 _SEGMENT_KEYS = {"name", "law", "combination", "accel_ratio", "span", "end", "start", "stroke", "to", "from",
-                 *_BOUNDARY_FIELDS}
+                 *_BOUNDARY_FIELDS, *_SPLINE_FIELDS}
 _POLYNOMIALS = {"poly5": 5, "poly7": 7}
 # Every name a file's `law` may hold: the laws, the dwell, and the polynomials solved here.
-FILE_LAW_NAMES = (*LAW_NAMES, *_POLYNOMIALS)
+FILE_LAW_NAMES = (*LAW_NAMES, *_POLYNOMIALS, "spline")
 # The Python API's names for what a cam file calls start, end, from and to.
 _FILE_NAMES = {"master_start": "start", "master_end": "end", "slave_start": "from", "slave_end": "to",
                "segments": "segment"}
@@ -182,6 +184,14 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
         if "accel_ratio" in r and law_name is not None:
             raise r.error(f"{r.name('accel_ratio')}: {show(r.get('accel_ratio'))} should be absent: only a "
                           "combination takes one")
+        for key in _SPLINE_FIELDS:
+            if key in r and law_name != "spline":
+                raise r.error(f"{r.name(key)}: should be absent: only spline segments take knots and derivatives")
+        if law_name == "spline":
+            segment = _spline(r, master, slave)
+            entries.append(segment)
+            master, slave = segment.master_end, segment.slave_end
+            continue
         placement, master, slave = _place(r, master, slave, period, dwell=law_name == "dwell")
         if law_name is None:
             entries.extend(_combination(r, placement))
@@ -246,6 +256,26 @@ def _place(r: Fields, master: float, slave: float, period: float, dwell: bool):
     else:
         raise r.error(f"{r.name('stroke')}: missing; expected a number (slave units) or 'to'")
     return (master_start, master_end, slave_start, slave_end), master_end, slave_end
+
+
+def _spline(r: Fields, master: float, slave: float) -> Segment:
+    """A ``law = "spline"`` segment: its knots give its span, its rows where it ends."""
+    for key in ("span", "end", "stroke", "to"):
+        if key in r:
+            raise r.error(f"{r.name(key)}: {show(r.get(key))} should be absent: a spline's knots give its span "
+                          "and its derivatives where it ends")
+    for key in _SPLINE_FIELDS:
+        if key not in r:
+            raise r.error(f"{r.name(key)}: missing; expected " + (
+                "a list of master positions from the segment's start" if key == "knots"
+                else "a list of rows [position, velocity, acceleration, jerk, snap, crackle], one per knot interval"))
+    master_start = r.number("start", default=master)
+    slave_start = r.number("from", default=slave)
+    with r.calling():
+        law = spline_law(r.get("knots"), r.get("derivatives"))
+    with r.calling(_file_name_in(r)):
+        return Segment(master_start, master_start + law.span, slave_start, slave_start + law.end_position, law,
+                       r.string("name", default=""))
 
 
 def _combination(r: Fields, placement) -> tuple[Segment, Segment]:

@@ -31,6 +31,9 @@ import ecam.validate as validate  # the module, not the package: no edge to ecam
 __all__ = ["DWELL", "Law", "LAWS", "LAW_NAMES", "LawTable", "law", "polynomial_from_boundary"]
 
 _PI = math.pi
+# Up to this many inner breaks a law's piece is found by one pass over the points per break;
+# beyond (a spline segment's knots), by bisection.
+_FEW_BREAKS = 16
 SIDES = ("right", "left")
 
 
@@ -198,7 +201,12 @@ class LawTable:
         self.breaks = np.full((len(self.laws), int(counts.max()) - 1), np.nan)
         for i, law_ in enumerate(self.laws):
             self.breaks[i, : len(law_.breaks)] = law_.breaks
-        self._break_columns = [self.breaks[:, k].copy() for k in range(self.breaks.shape[1])]
+        # Laws of many breaks (a spline's knots) find their piece by bisection; the others by a
+        # pass per break column, over the columns they use only.
+        self._many = [(i, np.array(law_.breaks)) for i, law_ in enumerate(self.laws)
+                      if len(law_.breaks) > _FEW_BREAKS]
+        narrow = max((len(law_.breaks) for law_ in self.laws if len(law_.breaks) <= _FEW_BREAKS), default=0)
+        self._break_columns = [self.breaks[:, k].copy() for k in range(narrow)]
         self.piece_start = np.array([piece.start for piece in pieces])
         self.piece_end = np.array([piece.end for piece in pieces])
         width = max(1, max(len(piece.poly) for piece in pieces))
@@ -257,7 +265,28 @@ class LawTable:
         piece = self.first_piece[which]
         for b in breaks:
             piece = piece + np.where(left, b < u, b <= u)  # np.searchsorted, side left/right
+        if self._many:
+            u, piece = self._bisect(which, u, left, snap, piece)
         return self.pieces_at(piece, u - self.piece_start[piece], order)
+
+    def _bisect(self, which, u, left, snap, piece):
+        """The piece of every point of a law with many breaks, by bisection (as the passes above
+        count it: side left/right, and ``snap`` onto a break within 1e-12)."""
+        u, piece = np.array(u, dtype=float), np.array(piece)
+        for index, breaks in self._many:
+            mask = which == index
+            if not mask.any():
+                continue
+            local = u[mask]
+            if snap:
+                near = np.clip(np.searchsorted(breaks, local), 1, breaks.size) - 1
+                for candidate in (breaks[near], breaks[np.minimum(near + 1, breaks.size - 1)]):
+                    local = np.where(np.abs(local - candidate) < 1e-12, candidate, local)
+            side_left = left if np.ndim(left) == 0 else np.asarray(left)[mask]
+            count = np.where(side_left, np.searchsorted(breaks, local, side="left"),
+                             np.searchsorted(breaks, local, side="right"))
+            u[mask], piece[mask] = local, self.first_piece[index] + count
+        return u, piece
 
     def pieces_at(self, piece: np.ndarray, t: np.ndarray, order: int) -> np.ndarray:
         """Piece ``piece[k]`` (a row of the stacked pieces) at local ``t[k]``: Piece.evaluate."""

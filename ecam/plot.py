@@ -12,7 +12,7 @@ from .atomic_files import write_files
 from .errors import InputError
 from .profile import ORDER_NAMES, CamProfile
 
-__all__ = ["plot_profile", "check_figure_path", "save_figure", "MARKED", "LABELLED", "PER_SEGMENT",
+__all__ = ["plot_profile", "plot_fit", "check_figure_path", "save_figure", "MARKED", "LABELLED", "PER_SEGMENT",
            "TEXT_AS_WRITTEN"]
 
 #: matplotlib settings under which every text is drawn as written: names and units come from
@@ -173,3 +173,52 @@ def _band(xs, ys, period: float, bands: int = BANDS):
     low, high = np.minimum.reduceat(ys, first), np.maximum.reduceat(ys, first)
     centres = (present + 0.5) * (period / bands)
     return np.repeat(centres, 2), np.column_stack([low, high]).ravel()
+
+
+def plot_fit(result, path, samples: int = 4001) -> None:
+    """A fit (:func:`ecam.fit_points`) over its motion diagram: the points and the fitted
+    position, the residuals (fit - point), and the fit's velocity, acceleration and jerk.
+
+    Parameters
+    ----------
+    result : ecam.fit.FitResult
+    path : str or Path
+        The figure file (``FIGURE_FORMATS``).
+    """
+    check_figure_path(path)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with matplotlib.rc_context(TEXT_AS_WRITTEN):  # names and units come from files
+        _draw_fit(plt, result, path, samples)
+
+
+def _draw_fit(plt, result, path, samples: int) -> None:
+    profile = result.profile
+    c = result.certificate
+    offset = c["master_offset"]
+    x = np.linspace(0.0, profile.master_period, samples)
+    fig, axes = plt.subplots(5, 1, sharex=True, figsize=(9, 11), constrained_layout=True)
+    unit, munit = profile.slave_unit, profile.master_unit
+    shown = slice(None, None, max(1, result.master.size // 20000))  # a point per pixel is enough
+    axes[0].plot(result.master[shown] - offset, result.slave[shown], ".", ms=2.5, color="0.45", label="points")
+    axes[0].plot(x, profile(x), color="C0", lw=1.2, label="fit")
+    axes[0].legend(loc="best", fontsize=8)
+    axes[0].set_ylabel(f"position\n[{unit}]")
+    axes[1].plot(result.master[shown] - offset, result.residuals[shown], ".", ms=2.5, color="C3")
+    if c["tolerance"] is not None:
+        for sign in (-1, 1):
+            axes[1].axhline(sign * c["tolerance"], color="C1", lw=0.8, ls="--")
+    axes[1].set_ylabel(f"fit - point\n[{unit}]")
+    for order, ax in zip((1, 2, 3), axes[2:]):
+        ax.plot(x, profile(x, order), color="C0", lw=1.2)
+        ax.set_ylabel(f"{ORDER_NAMES[order]}\n[{unit}/{munit}" + (f"^{order}]" if order > 1 else "]"))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel(f"master [{munit}]" + (f" from {offset:.6g}" if offset else ""))
+    how = "tolerance" if c["smoothing"] == "tolerance" else "GCV"
+    axes[0].set_title(f"{profile.name or 'fit'}: {c['points']} points, quintic smoothing spline ({how})\n"
+                      f"max deviation {c['max_deviation']:.3g} {unit}, rms {c['rms_deviation']:.3g} {unit}")
+    save_figure(fig, path)

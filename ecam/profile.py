@@ -18,6 +18,7 @@ import numpy as np
 import ecam.validate as validate  # the module, not the package: no edge to ecam/__init__
 from .errors import InputError
 from .laws import DWELL, LAWS, SIDES, Law, LawTable, law as _law, polynomial_from_boundary
+from .spline import SplineLaw
 
 __all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES", "MAX_SEGMENTS", "check_span",
            "check_master_period", "check_segment_count"]
@@ -146,6 +147,17 @@ class Segment:
             raise validate.fail("stroke", self.stroke, "0 for a dwell (or give a law that moves)")
         if self.boundary is not None:
             self._check_boundary()
+        if isinstance(self.law, SplineLaw):
+            self._check_spline()
+
+    def _check_spline(self):
+        """A spline segment spans its knots and ends where its last piece does."""
+        law_ = self.law
+        if not math.isclose(self.span, law_.span, rel_tol=1e-12):
+            raise validate.fail("master_end", self.master_end, f"master_start + {law_.span!r}, the spline's last knot")
+        end = law_.end_position
+        if abs(self.stroke - end) > 1e-12 * max(abs(self.slave_start), abs(self.slave_end), law_.amplitude):
+            raise validate.fail("slave_end", self.slave_end, f"slave_start + {end!r}, where the spline ends")
 
     def _check_boundary(self):
         shape = "((start velocity, acceleration[, jerk]), (end velocity, acceleration[, jerk]))"
@@ -293,11 +305,17 @@ class Segment:
         """Slave change over the segment (end - start), negative for a return."""
         return self.slave_end - self.slave_start
 
+    @property
+    def scale(self) -> float:
+        """Slave units per unit of the law's s: the stroke, or a spline's amplitude (a spline may
+        end where it starts)."""
+        return self.law.amplitude if isinstance(self.law, SplineLaw) else self.stroke
+
     def evaluate(self, x: np.ndarray, order: int, side: str = "right") -> np.ndarray:
         u = np.clip((x - self.master_start) / self.span, 0.0, 1.0)
         for b in self.law.breaks:  # a break recomputed from a master position may miss by an ulp
             u = np.where(np.abs(u - b) < 1e-12, b, u)
-        values = self.stroke / self.span**order * self.law(u, order, side=side)
+        values = self.scale / self.span**order * self.law(u, order, side=side)
         if order == 0:
             values = values + self.slave_start
         return values
@@ -597,13 +615,21 @@ class CamProfile:
             lines.append(f"law = {_toml_value(f'segment[{i}].law', _law_name(i, seg))}")
             if seg.master_start != master:
                 lines.append(f"start = {seg.master_start!r}")
-            if seg.master_start + seg.span == seg.master_end:
+            spline = isinstance(seg.law, SplineLaw)  # its knots and rows give its span and stroke
+            if spline:
+                pass
+            elif seg.master_start + seg.span == seg.master_end:
                 lines.append(f"span = {seg.span!r}")
             else:
                 lines.append(f"end = {seg.master_end!r}")
             if seg.slave_start != slave:
                 lines.append(f"from = {seg.slave_start!r}")
-            if seg.law != DWELL:
+            if spline:
+                lines.append("knots = [" + ", ".join(repr(k) for k in seg.law.knots) + "]")
+                lines.append("derivatives = [")
+                lines += ["  [" + ", ".join(repr(v) for v in row) + "]," for row in seg.law.derivatives]
+                lines.append("]")
+            elif seg.law != DWELL:
                 if seg.slave_start + seg.stroke == seg.slave_end:
                     lines.append(f"stroke = {seg.stroke!r}")
                 else:
@@ -874,13 +900,14 @@ class _SegmentArrays:
     def scale(self, order: int) -> np.ndarray:
         """``stroke / span**order`` of each segment."""
         if order not in self._scale:
-            self._scale[order] = np.array([seg.stroke / seg.span**order for seg in self.segments])
+            self._scale[order] = np.array([seg.scale / seg.span**order for seg in self.segments])
         return self._scale[order]
 
     def local_scale(self, order: int) -> np.ndarray:
         """``|stroke| / span**order`` of each segment (see :meth:`CamProfile.local_scale`)."""
         if order not in self._local:
-            self._local[order] = np.array([abs(seg.stroke) / seg.span**order for seg in self.segments])
+            self._local[order] = np.array([seg.law.local_scale(order) if isinstance(seg.law, SplineLaw)
+                                           else abs(seg.stroke) / seg.span**order for seg in self.segments])
         return self._local[order]
 
     def evaluate(self, index: np.ndarray, x: np.ndarray, order: int, left=False) -> np.ndarray:
@@ -936,6 +963,8 @@ def _law_name(i: int, seg: Segment) -> str:
     """The name a cam file gives the law of segment ``i``."""
     if seg.boundary is not None:
         return seg.law.name  # poly5 / poly7, with its boundary conditions
+    if isinstance(seg.law, SplineLaw):
+        return "spline"  # with its knots and derivatives
     if seg.law == DWELL or LAWS.get(seg.law.name) == seg.law:
         return seg.law.name
     raise validate.fail(f"segment[{i}].law", seg.law.name, "a law of ecam.LAWS, 'dwell' or a polynomial "

@@ -18,6 +18,7 @@ from hil_sim.effects import FIDELITIES
 
 from . import cam_commands, join_command
 from .drive_command import INTERFACES
+from .fit_command import add_fit_command
 from .transition_command import add_transition_parser
 
 EXIT_BAD_INPUT = 2
@@ -195,6 +196,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="file to write (default: NAME.FORMAT.EXT here)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=_export)
+
+    add_fit_command(sub)
 
     p = sub.add_parser("demo", help="the main job on the built-in seed cams")
     p.add_argument("-o", "--output", default="ecam-demo",

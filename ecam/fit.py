@@ -79,6 +79,11 @@ STEP_STEEPNESS = 10.0
 # of the slave range: then they are a step.
 DUPLICATE_SPREAD = 0.01
 ORDER_NAMES = ("position", "velocity", "acceleration", "jerk")
+# 3-point Gauss-Legendre rule on [-1, 1] (exact for degree 5; the penalty's integrand, a product
+# of two quadratics, has degree 4): nodes 0, +-sqrt(3/5), weights 8/9, 5/9 (Abramowitz and Stegun,
+# Handbook of Mathematical Functions, table 25.4).
+_GAUSS_NODES = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
+_GAUSS_WEIGHTS = np.array([5 / 9, 8 / 9, 5 / 9])
 
 
 @dataclass(frozen=True)
@@ -481,7 +486,7 @@ class _System:
         n = self.size
         self.G = self._gram(self.cols, self.vals, w)
         self.r = np.bincount(self.cols.ravel(), weights=(self.vals * (w * y)[:, None]).ravel(), minlength=n)
-        nodes, weights = np.polynomial.legendre.leggauss(3)
+        nodes, weights = _GAUSS_NODES, _GAUSS_WEIGHTS
         h = np.diff(tau)
         xq = (tau[:-1, None] + h[:, None] * (nodes[None, :] + 1) / 2).ravel()
         wq = (h[:, None] * weights[None, :] / 2).ravel()
@@ -535,8 +540,8 @@ class _System:
             diagonal = self.G[np.arange(n), shifted]  # G[i, i + d] (cyclically)
             if not self.periodic:
                 diagonal = np.where(np.arange(n) + d < n, diagonal, 0.0)
-            products = np.einsum("ki,ki->i", z, z[:, shifted])
-            total += (1.0 if d == 0 else 2.0) * float(diagonal @ products)
+            products = (z * z[:, shifted]).sum(axis=0)
+            total += (1.0 if d == 0 else 2.0) * float((diagonal * products).sum())
         return total
 
     def peak_jerk(self, coef):
@@ -717,10 +722,10 @@ class _Factor:
         for i in range(self.tail):
             lo = max(i - p, 0)
             if i > lo:
-                x[i] -= band[i, lo - i + p:] @ x[lo:i]
+                x[i] -= _dot(band[i, lo - i + p:], x[lo:i])
             x[i] /= diag[i]
         for r, i in enumerate(range(self.tail, self.n)):
-            x[i] -= self.tail_rows[r, :i] @ x[:i]
+            x[i] -= _dot(self.tail_rows[r, :i], x[:i])
             x[i] /= diag[i]
         return x
 
@@ -730,16 +735,16 @@ class _Factor:
         p, band, diag, tail = self.p, self.band, self.diag, self.tail
         for r in range(self.n - tail - 1, -1, -1):
             i = tail + r
-            x[i] -= self.tail_rows[r + 1:, i] @ x[i + 1:] if r + 1 < self.n - tail else 0.0
+            x[i] -= _dot(self.tail_rows[r + 1:, i], x[i + 1:])
             x[i] /= diag[i]
         for i in range(tail - 1, -1, -1):
             hi = min(i + p, tail - 1)
             if hi > i:
                 # L[k, i] for k in (i, hi]: band row k, column offset i - k + p
                 ks = np.arange(i + 1, hi + 1)
-                x[i] -= band[ks, i - ks + p] @ x[i + 1:hi + 1]
+                x[i] -= _dot(band[ks, i - ks + p], x[i + 1:hi + 1])
             if tail < self.n:
-                x[i] -= self.tail_rows[:, i] @ x[tail:]
+                x[i] -= _dot(self.tail_rows[:, i], x[tail:])
             x[i] /= diag[i]
         return x
 
@@ -749,6 +754,12 @@ class _Factor:
     def inverse_factor(self):
         """L^-1 as a dense matrix."""
         return self.forward(np.eye(self.n))
+
+
+def _dot(weights, block):
+    """sum_k weights[k] * block[k] (block: a vector or rows), elementwise in a fixed order: no
+    BLAS, whose kernels differ between CPUs, so a fit is the same bits on every machine."""
+    return (weights.reshape((-1,) + (1,) * (block.ndim - 1)) * block).sum(axis=0)
 
 
 def _values(t, i, x, q):

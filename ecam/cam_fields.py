@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from .field_table import REQUIRED, Field
 from .laws import LAW_NAMES
+from .spline import MAX_SPLINE_PIECES
 from .profile import MAX_PERIOD, MAX_SEGMENTS, MAX_SLAVE, MIN_PERIOD
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .table_spec import (DEFAULT_COUNTS_PER_UNIT, DEFAULT_INTERP, DEFAULT_MASTER_COUNTS, MAX_COUNTS_PER_UNIT,
@@ -16,7 +17,7 @@ __all__ = ["CAM_FIELDS", "CAM_TABLES"]
 
 _PARSER = "ecam.camfile"
 _SPEC = "ecam.table_spec (TableSpec)"
-_FILE_LAWS = (*LAW_NAMES, "poly5", "poly7")
+_FILE_LAWS = (*LAW_NAMES, "poly5", "poly7", "spline")
 
 #: The tables of a cam file and what each holds, in the reference's order.
 CAM_TABLES = {
@@ -83,8 +84,9 @@ CAM_FIELDS: tuple[Field, ...] = (
           maximum=MAX_COUNTS_PER_UNIT, limits="every table position inside int32", source=_SPEC),
 
     Field("segment", "name", "string", "A name for reports and plots.", default="", source=_PARSER),
-    Field("segment", "law", "choice", "The motion law (`ecam laws`), a dwell, or a polynomial solved "
-          "from boundary conditions (poly5, poly7).", default_text="give exactly one of law and "
+    Field("segment", "law", "choice", "The motion law (`ecam laws`), a dwell, a polynomial solved "
+          "from boundary conditions (poly5, poly7), or a spline (knots and derivatives, as `ecam fit` "
+          "writes it).", default_text="give exactly one of law and "
           "combination", choices=_FILE_LAWS, source=_PARSER),
     Field("segment", "combination", "array", "Two half laws joined with matched velocity "
           "(ecam.design), e.g. [\"half_cycloid_start\", \"half_harmonic_end\"].",
@@ -112,4 +114,14 @@ CAM_FIELDS: tuple[Field, ...] = (
           "`ecam check` reports.", unit="slave units", default_text="the previous segment's end",
           minimum=-MAX_SLAVE, maximum=MAX_SLAVE, source=_PARSER, probe=False),
     *_BOUNDARY,
+    Field("segment", "knots", "array", "spline only: the knots' master positions from the segment's "
+          "start, 0 first, increasing; the last is the segment's span.", unit="master units",
+          default=REQUIRED, limits=f"2 .. {MAX_SPLINE_PIECES + 1} knots, strictly increasing; no span, end, "
+          "stroke or to beside them", when=(("segment.law", "spline"),), source="ecam.spline", probe=False),
+    Field("segment", "derivatives", "array", "spline only: one row per knot interval, [position, "
+          "velocity, acceleration, jerk, snap, crackle] at its first knot (from the right); the "
+          "position is from the segment's start (0 in the first row). The interval follows the "
+          "row's Taylor polynomial of degree 5.", unit="slave units / master unit^k",
+          default=REQUIRED, limits="as many rows as knot intervals, 6 finite numbers each",
+          when=(("segment.law", "spline"),), source="ecam.spline", probe=False),
 )

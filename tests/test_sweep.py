@@ -238,3 +238,34 @@ def test_a_sweep_runs_on_an_existing_scheduler(scene_file, tmp_path):
                             directory=tmp_path / "out", samples=2, rerun_worst=False)
     assert summary["samples"] == 2 and summary["timing"]["scheduler"] == cluster.scheduler_address
     assert len((tmp_path / "out" / "results.jsonl").read_text().splitlines()) == 1 + 2 * 2
+
+
+def test_a_sobol_design_gets_sobol_indices_and_falls_back_to_spearman_when_a_sample_errors(tmp_path):
+    from ecam.app.sweep import plan_sweep, summarize
+
+    path = tmp_path / "sobol.toml"
+    path.write_text(_scene_text(SWEEP.replace("seed = 3", "seed = 3\nmethod = 'sobol'")
+                                .replace("samples = 6", "samples = 80")))
+    plan = plan_sweep(path)
+    assert plan.design.samples == 16 * 5  # N (fields + 2), N = 16
+    stiffness = plan.design.values[:, 0] / 2.0e6
+
+    def result(i):  # a check that only the stiffness moves
+        value = float(stiffness[i])
+        return {"index": i, "speed_index": 0, "passed": value <= 1.1, "error": None,
+                "values": plan.design.sample(i),
+                "checks": [{"name": "made_up", "value": value, "limit": 1.1, "passed": value <= 1.1,
+                            "unit": ""}]}
+
+    results = {(i, k): result(i) for i in range(plan.design.samples) for k in range(2)}
+    sensitivity = summarize(plan, results)["sensitivity"]
+    assert sensitivity["method"] == "sobol"
+    found = {p["name"]: p for p in sensitivity["parameters"]}
+    # a field the output does not depend on has a total index of exactly 0 (Jansen's estimator
+    # differences f(A) and f(A with that column from B), which are equal)
+    assert found["mechanics.gear_backlash"]["ST"] == 0.0 == found["mechanics.load_inertia"]["ST"]
+    assert found["mechanics.coupling_stiffness"]["ST"] > 0.5
+    results[(3, 0)] = {**results[(3, 0)], "error": "made up", "checks": [], "passed": False}
+    fallback = summarize(plan, results)["sensitivity"]
+    assert fallback["method"] == "spearman" and "Sobol' indices need all of them" in fallback["note"]
+    assert fallback["parameters"][0] == {"name": "mechanics.coupling_stiffness", "spearman": 1.0}

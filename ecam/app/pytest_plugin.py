@@ -35,6 +35,11 @@ For Python tests::
 
 or the ``run_scene`` fixture, which does the same and adds the run to ``--ecam-html``.
 
+For robustness sweeps (``ecam sweep``, :mod:`ecam.app.sweep`)::
+
+    summary = run_sweep("scenes/knife_sweep.toml", workers=2, directory=tmp_path)
+    assert_yield(summary, "coupling_peak_torque", 0.99)   # 99 % of the machines built pass it
+
 Only :mod:`pytest` is imported at module level: the plugin is loaded into every pytest
 process, so the rig (the CAN stack, matplotlib) is imported only when a scene runs. Loading
 the module imports the ``ecam`` package above it, and with it numpy (about 0.07 s).

@@ -131,3 +131,21 @@ def test_horner_bits_32_keeps_the_expansion_in_32_bit_words(drrd):
     assert max(int(np.abs(r).max()) for r in rows[1:]) < 2**30 and int(np.abs(rows[0]).max()) < 2**31
     assert wide.report["predicted_error_counts"] <= narrow.report["predicted_error_counts"] < 0.7
     assert narrow.report["max_error_counts"] <= narrow.report["predicted_error_counts"]
+
+
+def test_ecam_compile_takes_horner_bits(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from ecam.table import narrow_horner
+
+    cam = "firmware_tables/cams/rotary_knife.toml"
+    out = subprocess.run([sys.executable, "-m", "ecam.app", "compile", cam, "--interp", "quintic", "--points", "61",
+                          "--horner-bits", "32", "-o", str(tmp_path), "--json"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    table = CamTable.from_bytes((tmp_path / "rotary_knife.bin").read_bytes())
+    assert narrow_horner(table) and json.loads(out.stdout)["format"]["work_bits"] == table.format.work_bits
+    bad = subprocess.run([sys.executable, "-m", "ecam.app", "compile", cam, "--horner-bits", "16", "-o", str(tmp_path)],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.startswith("ecam: error:") and "--horner-bits" in bad.stderr

@@ -184,7 +184,7 @@ def cmd_compile(args) -> int:
     table = compile_table(
         profile, interp=args.interp, points=args.points, tolerance=args.tolerance,
         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
-        progress=progress_bar(f"certifying {profile.name}"),
+        horner_bits=getattr(args, "horner_bits", None), progress=progress_bar(f"certifying {profile.name}"),
     )
     files = write_table(table, name, Path(args.output), formats, inputs=[args.cam])
     summary = table_summary(table, files)

@@ -176,6 +176,9 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts'")
     p.add_argument("--master-counts", type=int, help="master period in counts")
     p.add_argument("--slave-counts-per-unit", type=float, help="slave counts per slave unit")
+    p.add_argument("--horner-bits", type=int, choices=(64, 32),
+                   help="32: a format whose expanded form (ecam_poly_init) runs in 32-bit words on 32-bit "
+                        "cores, at a certified cost in precision (default: 64; docs/table_formats.md)")
     p.add_argument("-o", "--output", default=".", help="output directory (default: .)")
     p.add_argument("--format", default="c,bin", help="comma list of c, bin, csv, json (default: c,bin)")
     p.add_argument("--json", action="store_true")

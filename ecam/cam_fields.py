@@ -9,6 +9,7 @@ from .laws import LAW_NAMES
 from .spline import MAX_SPLINE_PIECES
 from .profile import MAX_PERIOD, MAX_SEGMENTS, MAX_SLAVE, MIN_PERIOD
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
+from .tappet import DIRECTIONS, MAX_COMPENSATION_S
 from .table_spec import (DEFAULT_COUNTS_PER_UNIT, DEFAULT_INTERP, DEFAULT_MASTER_COUNTS, MAX_COUNTS_PER_UNIT,
                          MAX_POINTS, MIN_COUNTS_PER_UNIT)
 from .validate import MAX_MAGNITUDE
@@ -18,6 +19,7 @@ __all__ = ["CAM_FIELDS", "CAM_TABLES"]
 _PARSER = "ecam.camfile"
 _SPEC = "ecam.table_spec (TableSpec)"
 _FILE_LAWS = (*LAW_NAMES, "poly5", "poly7", "spline")
+_TAPPET = "ecam.tappet (TappetTrack)"
 
 #: The tables of a cam file and what each holds, in the reference's order.
 CAM_TABLES = {
@@ -27,6 +29,8 @@ CAM_TABLES = {
              "and `ecam compile` says which it applied.",
     "segment": "One `[[segment]]` per piece of the motion, in master order; the segments cover the "
                "master period without gaps.",
+    "tappet": "One `[[tappet]]` per digital cam switch (PLCopen MC_DigitalCamSwitch; ecam.tappet): an "
+              "output on from `on` to `off` on the master position. Optional; exports carry them.",
 }
 
 _BOUNDARY = []
@@ -63,6 +67,8 @@ CAM_FIELDS: tuple[Field, ...] = (
     Field("", "table", "table", "The `[table]` settings below.", default_text="the defaults below"),
     Field("", "segment", "array of tables", "The `[[segment]]` entries below.", default=REQUIRED,
           limits=f"1 .. {MAX_SEGMENTS} segments"),
+    Field("", "tappet", "array of tables", "The `[[tappet]]` entries below.", default_text="none",
+          limits=f"0 .. {MAX_SEGMENTS} tappets"),
 
     Field("table", "interp", "choice", "The interpolation kind: positions only (linear), position "
           "and slope (cubic Hermite, C1), position, slope and curvature (quintic Hermite, C2), or the "
@@ -124,4 +130,26 @@ CAM_FIELDS: tuple[Field, ...] = (
           "row's Taylor polynomial of degree 5.", unit="slave units / master unit^k",
           default=REQUIRED, limits="as many rows as knot intervals, 6 finite numbers each",
           when=(("segment.law", "spline"),), source="ecam.spline", probe=False),
+
+    Field("tappet", "name", "string", "A name for reports and exports.", default="", source=_TAPPET),
+    Field("tappet", "on", "number", "The first master position where the output is on "
+          "(PLCopen FirstOnPosition).", unit="master units", default=REQUIRED,
+          limits="within 0 .. master_period", source=_TAPPET, probe=False),
+    Field("tappet", "off", "number", "The last master position where the output is on "
+          "(LastOnPosition); below `on`, the window wraps through the period end.",
+          unit="master units", default=REQUIRED, limits="within 0 .. master_period", source=_TAPPET,
+          probe=False),
+    Field("tappet", "direction", "choice", "The master's direction of motion in which the output "
+          "switches (PLCopen AxisDirection 0, 1, 2).", default="both", choices=DIRECTIONS,
+          source=_TAPPET),
+    Field("tappet", "hysteresis", "number", "How far the master must move away from the last "
+          "switching point before the output switches again (PLCopen track Hysteresis).",
+          unit="master units", default=0.0, minimum=0.0, limits="below half the master period",
+          source=_TAPPET),
+    Field("tappet", "on_compensation", "number", "Compensation time of the rising edge (PLCopen "
+          "OnCompensation): negative brings it forward, e.g. -0.02 for a valve's 20 ms dead time.",
+          unit="s", default=0.0, minimum=-MAX_COMPENSATION_S, maximum=MAX_COMPENSATION_S, source=_TAPPET),
+    Field("tappet", "off_compensation", "number", "Compensation time of the falling edge "
+          "(OffCompensation).", unit="s", default=0.0, minimum=-MAX_COMPENSATION_S,
+          maximum=MAX_COMPENSATION_S, source=_TAPPET),
 )

@@ -23,6 +23,7 @@ from .profile import (BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_mast
                       check_span, check_tiling)
 from .spline import spline_law
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
+from .tappet import DIRECTIONS, TAPPET_KEYS, TappetTrack
 from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
 
@@ -33,7 +34,7 @@ __all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_toml", "sh
 CAMS_DIR = Path(__file__).resolve().parent / "cams"
 
 _TOP_KEYS = {"name", "master_unit", "slave_unit", "master_period", "periodic", "start", "net_stroke", "table",
-             "segment"}
+             "segment", "tappet"}
 _BOUNDARY_FIELDS = tuple(f"{end}_{what}" for end in ("start", "end") for what in BOUNDARY_KEYS)
 _SPLINE_FIELDS = ("knots", "derivatives")  # a spline segment's (ecam.spline), and only its
 _SEGMENT_KEYS = {"name", "law", "combination", "accel_ratio", "span", "end", "start", "stroke", "to", "from",
@@ -206,10 +207,11 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
     segments = [_polynomial(entries, k, periodic) if isinstance(entry, tuple) else entry
                 for k, entry in enumerate(entries)]
     net_stroke = top.number("net_stroke")  # checked against the strokes by CamProfile
+    tappets = _tappets(top)
     with top.calling(_file_name):
         return CamProfile(segments, period, periodic, name=top.get("name", Path(source).stem),
                           master_unit=top.get("master_unit", "deg"), slave_unit=slave_unit, table=table,
-                          net_stroke=net_stroke)
+                          net_stroke=net_stroke, tappets=tappets)
 
 
 def _file_name(field: str) -> str:
@@ -319,6 +321,31 @@ def _polynomial(entries: list, k: int, periodic: bool) -> Segment:
             conditions[f"{end}_jerk"] = r.get(f"{end}_jerk")  # refused by Segment.polynomial
     with r.calling(_file_name_in(r)):
         return Segment.polynomial(*placement, degree=degree, name=r.text("name", default=""), **conditions)
+
+
+def _tappets(top: Fields) -> tuple:
+    """The ``[[tappet]]`` tables: digital cam switches (:mod:`ecam.tappet`); their range against
+    the master period is checked by CamProfile."""
+    raw = top.get("tappet")
+    if raw is None:
+        return ()
+    if not isinstance(raw, list) or not all(isinstance(t, dict) for t in raw):
+        raise top.error(f"tappet: {show(raw)} should be an array of tables ([[tappet]])")
+    with top.calling():
+        check_segment_count(len(raw), "tappet")
+    out = []
+    for i, item in enumerate(raw):
+        r = Fields(item, f"tappet[{i}]", top.source, set(TAPPET_KEYS))
+        for key in ("on", "off"):
+            if key not in r:
+                raise r.error(f"{r.name(key)}: missing; expected a number (master units)")
+        values = {key: r.number(key) for key in ("on", "off", "hysteresis", "on_compensation",
+                                                  "off_compensation") if key in r}
+        if "direction" in r:
+            values["direction"] = r.choice("direction", DIRECTIONS)
+        with r.calling():
+            out.append(TappetTrack(**values, name=r.string("name", default="")))
+    return tuple(out)
 
 
 def _table(top: Fields, slave_unit: str) -> dict:

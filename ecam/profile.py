@@ -19,6 +19,7 @@ import ecam.validate as validate  # the module, not the package: no edge to ecam
 from .errors import InputError
 from .laws import DWELL, LAWS, SIDES, Law, LawTable, law as _law, polynomial_from_boundary
 from .spline import SplineLaw
+from .tappet import TappetTrack
 
 __all__ = ["Segment", "CamProfile", "Discontinuity", "CheckReport", "ORDER_NAMES", "MAX_SEGMENTS", "check_span",
            "check_master_period", "check_segment_count"]
@@ -428,6 +429,9 @@ class CamProfile:
         net_stroke``, and the seam is checked like any joint, the position continuing by the
         net stroke. None (the default): the slave returns to its start every period, and a
         position step at the seam is a jump that :meth:`check` reports.
+    tappets : sequence of TappetTrack
+        Digital cam switches on the master position (:mod:`ecam.tappet`), each within the
+        master period; the cam file's ``[[tappet]]`` tables. Kept as a tuple.
 
     Raises
     ------
@@ -450,6 +454,7 @@ class CamProfile:
     slave_unit: str = "mm"
     table: dict = field(default_factory=dict)
     net_stroke: float | None = None
+    tappets: tuple = ()
 
     def __post_init__(self):
         segments = self.segments
@@ -475,6 +480,22 @@ class CamProfile:
         check_tiling([(seg.master_start, seg.master_end) for seg in segments], period)
         object.__setattr__(self, "_starts", np.array([s.master_start for s in segments]))
         self._check_net_stroke()
+        self._check_tappets()
+
+    def _check_tappets(self):
+        """Each tappet a TappetTrack within the master period."""
+        tappets = self.tappets
+        if isinstance(tappets, (str, bytes, Mapping)) or not hasattr(tappets, "__iter__"):
+            raise validate.fail("tappets", tappets, "a sequence of TappetTrack")
+        tappets = tuple(tappets)
+        for i, track in enumerate(tappets):
+            if not isinstance(track, TappetTrack):
+                raise validate.fail(f"tappet[{i}]", track, "a TappetTrack")
+            try:
+                track.within(self.master_period)
+            except InputError as exc:
+                raise validate.renamed(exc, lambda f: f"tappet[{i}].{f}") from None
+        object.__setattr__(self, "tappets", tappets)
 
     def _check_net_stroke(self):
         """The declared net stroke: a periodic cam's only, and what its segments add up to
@@ -638,6 +659,16 @@ class CamProfile:
                 for key, value in zip(BOUNDARY_KEYS, values):
                     lines.append(f"{end}_{key} = {value!r}")
             master, slave = seg.master_end, seg.slave_end
+        for i, track in enumerate(self.tappets):
+            lines += ["", "[[tappet]]"]
+            if track.name:
+                lines.append(f"name = {_toml_value(f'tappet[{i}].name', track.name)}")
+            lines += [f"on = {track.on!r}", f"off = {track.off!r}"]
+            if track.direction != "both":
+                lines.append(f"direction = {_toml_value(f'tappet[{i}].direction', track.direction)}")
+            for key in ("hysteresis", "on_compensation", "off_compensation"):
+                if getattr(track, key):
+                    lines.append(f"{key} = {getattr(track, key)!r}")
         return "\n".join(lines) + "\n"
 
     # evaluation --------------------------------------------------------------------------

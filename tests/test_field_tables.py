@@ -34,6 +34,7 @@ BASE_CAM = {
     # strokes small enough that a start at the slave limit keeps every segment end inside it
     "segment": [{"law": "cycloidal", "span": 180.0, "stroke": 0.01},
                 {"law": "cycloidal", "span": 180.0, "stroke": -0.01}],
+    "tappet": [{"on": 10.0, "off": 20.0}],
 }
 # Settings a choice needs before it parses (the other choices' own fields).
 CHOICE_CONTEXT = {
@@ -63,7 +64,7 @@ def _table(data, dotted: str, create: bool = True) -> dict:
     """The mapping of a dotted table in ``data`` (``segment``: the first segment)."""
     node = data
     for part in filter(None, dotted.split(".")):
-        if part == "segment" and isinstance(node.get(part), list):
+        if part in ("segment", "tappet") and isinstance(node.get(part), list):
             node = node[part][0]
         else:
             node = node.setdefault(part, {}) if create else node[part]
@@ -132,6 +133,8 @@ def test_the_limits_are_the_parsers(kind, field, value, accepted):
     if field.name == "master_period":  # the segments cover the period
         for segment in data["segment"]:
             segment["span"] = value / 2
+        for tappet in data.get("tappet", []):  # and the tappets lie within it
+            tappet["on"], tappet["off"] = value / 36, value / 18
     if accepted:
         parse(data)
     else:

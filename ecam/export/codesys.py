@@ -43,6 +43,7 @@ from .certify import (
     EXPORT_VERSION, Cam, Hermite, Reading, VendorExport, certify, content_crc, knot_data, place_local, positional,
 )
 from .escape import iec_comment
+from .codesys_tappets import tappet_count, tappet_declarations, tappet_header
 from .table_files import identifier
 
 NAME = "codesys"
@@ -79,10 +80,14 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     for k, (x, y, v, a) in enumerate(text_rows):
         end = "," if k < len(text_rows) - 1 else ""
         body.append(f"        (dX := {x}, dY := {y}, dV := {v}, dA := {a}){end}")
+    tappets = cam.profile.tappets  # [[tappet]]: MC_CAM_REF.nTappets / .pt (ecam.export.codesys_tappets)
+    tappet_ref = f", pt := ADR({ident}_tappets)" if tappets else ""
     body += [
         "    ];",
+        *tappet_declarations(tappets, ident),
         f"    {ident} : MC_CAM_REF := (byType := 3, xStart := {positional(0.0)}, xEnd := {positional(cam.period)}, "
-        f"nElements := {len(text_rows)}, nTappets := 0, pce := ADR({ident}_xyva), strCAMName := '{ident}');",
+        f"nElements := {len(text_rows)}, nTappets := {tappet_count(tappets)}, pce := ADR({ident}_xyva)"
+        f"{tappet_ref}, strCAMName := '{ident}');",
         "END_VAR",
         "",
     ]
@@ -110,6 +115,7 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
         header.append(f"   Net stroke {cam.net_stroke:+.6g} {unit} per period (the last point is the first one period "
                       f"on): StartMode absolute on a modulo slave whose period divides it"
                       + (", or StartMode relative (the cam starts at dY = 0)." if start == 0.0 else "."))
+    header += tappet_header(tappets, ident)
     header += [
         f"   Certified by ecam under that interpolation: max error {c.max_error_units:.6g} {unit} "
         f"({c.max_error_counts:.6g} counts at {cam.scale:g} counts/{unit}) at master {c.max_error_at_master:.6g} "

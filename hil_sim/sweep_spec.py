@@ -56,6 +56,8 @@ SWEEP_FIELDS = ("samples", "seed", "method", "speeds", "speeds_rpm", "required_y
                 "confidence", "tuning", "fidelity", "vary")
 #: Most speeds one sweep may judge at.
 MAX_SPEEDS = 100
+#: Most fields one sweep may vary (each is checked by parsing the scene once).
+MAX_FIELDS = 100
 _PART = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d{1,6})\])?$")
 
 
@@ -146,6 +148,9 @@ def parse_sweep(data: dict, base: Path = Path("."), source: str = "<scene>") -> 
     if not vary_raw.raw:
         raise raw.error(f"{vary_raw.where}: {{}} should map at least one scene field to a "
                         "distribution")
+    if len(vary_raw.raw) > MAX_FIELDS:
+        raise raw.error(f"{vary_raw.where}: {len(vary_raw.raw)} fields should be at most "
+                        f"{MAX_FIELDS}")
     vary = tuple((str(name), _distribution(vary_raw, name)) for name in vary_raw.raw)
     method = raw.choice("method", METHODS, default=METHODS[0])
     if method == "grid" and len(vary) > 2:

@@ -182,6 +182,11 @@ def test_a_sweep_gives_the_same_summary_on_one_and_two_workers_and_resumes(scene
     assert worst["canopen"]["report"] == "worst_sample.json" and not worst["passed"]
     report = json.loads((tmp_path / "one" / "worst_sample.json").read_text())
     assert report["passed"] == worst["canopen"]["passed"] and report["checks"]
+    # the worst sample alone, from the scene and its index: the same report
+    alone = subprocess.run([sys.executable, "-m", "ecam.app", "sweep", str(scene_file), "--sample",
+                            str(worst["index"]), "--json"], capture_output=True, text=True)
+    assert alone.returncode == (0 if worst["canopen"]["passed"] else 1), alone.stderr
+    assert alone.stdout == (tmp_path / "one" / "worst_sample.json").read_text()
     with pytest.raises(AssertionError, match="yield of every check"):
         assert_yield(one, None, 0.95)
     assert_yield(one, "following_error", 1.0)
@@ -269,3 +274,17 @@ def test_a_sobol_design_gets_sobol_indices_and_falls_back_to_spearman_when_a_sam
     fallback = summarize(plan, results)["sensitivity"]
     assert fallback["method"] == "spearman" and "Sobol' indices need all of them" in fallback["note"]
     assert fallback["parameters"][0] == {"name": "mechanics.coupling_stiffness", "spearman": 1.0}
+
+
+def test_a_sweep_is_bounded(tmp_path):
+    from ecam.app.sweep import plan_sweep
+    from ecam.errors import InputError
+
+    path = tmp_path / "big.toml"
+    path.write_text(_scene_text(SWEEP.replace("samples = 6", "samples = 600000")))
+    with pytest.raises(InputError, match=r"^sweep: 600000 samples x 2 speeds = 1200000 runs should be <= 1000000$"):
+        plan_sweep(path)
+    many = "".join(f"'mechanics.load_inertia{i}' = {{ distribution = 'uniform', low = 0.01, high = 0.03 }}\n"
+                   for i in range(101))
+    with pytest.raises(CamFileError, match=r"sweep.vary: 101 fields should be at most 100$"):
+        parse_sweep(_data("[sweep.vary]\n" + many), base=hil_sim.SCENES_DIR)

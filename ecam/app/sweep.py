@@ -45,6 +45,8 @@ SUMMARY_FILE = "summary.json"
 WORST_FILE = "worst_sample.json"
 #: The gains a nominal tuning pins in every sample's [drive.gains].
 PINNED_GAINS = ("position_kp", "velocity_kp", "velocity_ki", "notch_hz")
+#: Most runs (samples x judged speeds) one sweep may ask for.
+MAX_RUNS = 1_000_000
 INSTALL_HINT = "ecam sweep needs dask.distributed: pip install 'ecam[sweep]'"
 
 
@@ -116,6 +118,9 @@ def plan_sweep(path, samples: int | None = None, data: dict | None = None) -> Sw
     drawn = design(spec.method, spec.distributions, spec.samples, spec.seed,
                    {k: v for k, v in nominal.items() if v is not None})
     speeds = spec.speeds_per_second(scene, profile.master_period)
+    if drawn.samples * len(speeds) > MAX_RUNS:
+        raise InputError(f"sweep: {drawn.samples} samples x {len(speeds)} speeds = "
+                         f"{drawn.samples * len(speeds)} runs should be <= {MAX_RUNS}")
     gains = nominal_gains(scene.with_master_speed(speeds[0]).with_fidelity(spec.fidelity)) \
         if spec.tuning == "nominal" else None
     return SweepPlan(path=path, data=data, scene=scene, spec=spec, design=drawn,
@@ -367,15 +372,30 @@ def _run_pending(plan, pending, results, log, workers, scheduler, progress, star
     return timing
 
 
+def sample_scene(plan: SweepPlan, index: int, speed_index: int = 0) -> Scene:
+    """Sample ``index`` of the sweep alone, at judged speed ``speed_index``, as the scene its
+    worker ran (its values, the pinned gains if any, the speed and the fidelity): a sample is
+    reproducible from the scene, the ``[sweep]`` table and its index.
+
+    Raises
+    ------
+    InputError
+        An index outside the design, or a sample that does not read (its one-line error).
+    """
+    integer("sample", index, minimum=0, maximum=plan.design.samples - 1)
+    integer("speed_index", speed_index, minimum=0, maximum=len(plan.speeds) - 1)
+    task = plan.task(index, speed_index)
+    scene = parse_scene(task["data"], base=plan.path.parent, source=plan.path.name)
+    return scene.with_master_speed(task["speed"]).with_fidelity(plan.spec.fidelity)
+
+
 def _rerun_worst(plan: SweepPlan, worst: dict, directory: Path) -> dict:
     """Run the worst sample over CANopen; keep its full report in ``worst_sample.json``."""
     from hil_sim.rig import run_scene
 
-    task = plan.task(worst["index"], worst["speed_index"])
     try:
-        scene = parse_scene(task["data"], base=plan.path.parent, source=plan.path.name)
-        scene = scene.with_master_speed(task["speed"]).with_fidelity(plan.spec.fidelity)
-        report = run_scene(scene, path="canopen")
+        report = run_scene(sample_scene(plan, worst["index"], worst["speed_index"]),
+                           path="canopen")
     except EcamError as exc:
         return {"canopen": {"error": str(exc).splitlines()[0]}}
     write_files({directory / WORST_FILE: report.to_json()})

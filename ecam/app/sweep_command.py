@@ -33,6 +33,9 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
                              "[<scene name>-sweep]")
     parser.add_argument("--resume", action="store_true",
                         help="continue the results in DIR: only the missing samples run [off]")
+    parser.add_argument("--sample", type=int, default=None, metavar="INDEX",
+                        help="run sample INDEX alone, over CANopen at the first judged speed, and "
+                             "print its report (text, or JSON with --json); no Dask needed [off]")
 
 
 def _progress():
@@ -62,6 +65,8 @@ def sweep_command(args: argparse.Namespace) -> int:
 
     from .sweep import format_summary, result_rows, run_sweep
 
+    if args.sample is not None:
+        return _one_sample(args)
     if args.html and not Path(args.html).resolve().parent.is_dir():  # before the sweep, not after
         raise InputError(f"--html: {args.html!r}: its directory does not exist")
     summary = run_sweep(args.scene, samples=args.samples, workers=args.workers,
@@ -80,3 +85,20 @@ def sweep_command(args: argparse.Namespace) -> int:
             print(f"html: {args.html}")
     lower = summary["yield_interval"][0] if summary["yield_interval"] else 0.0
     return 0 if lower >= summary["max_speed_at_yield"]["required"] else 1
+
+
+def _one_sample(args: argparse.Namespace) -> int:
+    """`ecam sweep SCENE --sample I`: the sample's report; 0 if it passed, else 1."""
+    from hil_sim.rig import run_scene
+
+    from .sweep import plan_sweep, sample_scene
+
+    plan = plan_sweep(args.scene, args.samples)
+    report = run_scene(sample_scene(plan, args.sample))
+    if args.json:
+        sys.stdout.write(report.to_json())
+    else:
+        values = ", ".join(f"{k} = {v:.6g}" for k, v in plan.design.sample(args.sample).items())
+        sys.stdout.write(f"sample #{args.sample} of {plan.design.samples} (seed "
+                         f"{plan.design.seeds[args.sample]}): {values}\n" + report.to_text())
+    return 0 if report.passed else 1

@@ -133,6 +133,8 @@ class FitResult:
             f"  smoothing: {how}; lambda {c['lambda']:.4g}, {c['effective_parameters']:.1f} effective parameters, "
             f"{c['knots']} knot intervals ({c['knot_placement']})",
             f"  master period {c['master_period']:.10g} {munit}"
+            + (f", declared steps at {', '.join(f'{v:.6g}' for v in c['steps'])} {munit} (one segment per "
+               "stretch)" if c["steps"] else "")
             + (f", from master {c['master_offset']:.10g} {munit} of the table" if c["master_offset"] else ""),
             f"  max deviation {c['max_deviation']:.4g} {unit} at master {c['max_deviation_at']:.6g} {munit} "
             f"(row {c['max_deviation_row']}); rms {c['rms_deviation']:.4g} {unit}",
@@ -147,7 +149,7 @@ class FitResult:
 
 def fit_points(master, slave, weights=None, *, tolerance=None, periodic: bool = False, net_stroke=None,
                period=None, name: str = "fit", master_unit: str = "deg", slave_unit: str = "mm",
-               max_knots: int = MAX_KNOTS) -> FitResult:
+               max_knots: int = MAX_KNOTS, steps=None) -> FitResult:
     """Fit a cam to a point table: a quintic smoothing spline (C4: jerk continuous), certified.
 
     Parameters
@@ -171,6 +173,12 @@ def fit_points(master, slave, weights=None, *, tolerance=None, periodic: bool = 
         Of the cam.
     max_knots : int
         Knot intervals beyond which the knots are placed rather than at every point.
+    steps : sequence of float, optional
+        Master positions where the table is declared to step: each stretch between them is
+        fitted on its own (C4 inside), so the cam has one spline segment per stretch and the
+        position may jump at the steps (``ecam check`` reports it). Of several points at a step,
+        the first ends the stretch before it. Not with a net stroke. Default: none, and a step in
+        the points is refused.
 
     Returns
     -------
@@ -208,30 +216,101 @@ def fit_points(master, slave, weights=None, *, tolerance=None, periodic: bool = 
         x = x - turns * length  # the last point, one period on, lands on the first
     else:
         length = float(x[-1] - x0)
-    x, y, w, slack, averaged = _merge_duplicates(x, y, w, span_range)
-    if x.size < MIN_FIT_POINTS:
-        raise validate.fail("points", x.size, f"at least {MIN_FIT_POINTS} distinct master positions")
-    _refuse_steps(x, y, span_range, periodic, length, net)
+    steps = _steps(steps, x0, length, net, periodic)
+    pieces = []
+    averaged = 0
+    edges = [x0, *steps, x0 + length]
+    for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        inside = _stretch(x, lo, hi, k == 0, k == len(edges) - 2)
+        px, py, pw, slack, merged = _merge_duplicates(x[inside], y[inside], w[inside], span_range)
+        averaged += merged
+        where = f" between the steps at {lo:.10g} and {hi:.10g}" if steps else ""
+        if px.size < MIN_FIT_POINTS:
+            raise validate.fail("points", px.size, f"at least {MIN_FIT_POINTS} distinct master positions{where}")
+        smooth = periodic and not steps
+        _refuse_steps(px, py, span_range, smooth, length, net)
+        pieces.append(_fit_stretch(px, py, pw, slack, lo, hi, smooth, net, tolerance, max_knots, slave_unit))
+    # the cam's master starts at the first point; each segment where the one before ends (as a
+    # cam file places them: start + the last knot)
+    segments, master = [], 0.0
+    for piece in pieces:
+        law, start = piece["law"], piece["start"]
+        segments.append(Segment(master, master + law.span, start, start + law.end_position, law, name))
+        master = segments[-1].master_end
+    profile = CamProfile(tuple(segments), master, periodic, name=name, master_unit=master_unit,
+                         slave_unit=slave_unit, net_stroke=net if periodic and net else None)
+    lam = pieces[0]["lambda"]
+    system_k = sum(piece["knots"] for piece in pieces)
+    placement = pieces[0]["placement"]
+    effective = sum(piece["effective"] for piece in pieces)
 
-    u = (x - x0) / length
+    # the certificate: the cam as written, at every given point (a periodic cam unrolls by its
+    # net stroke, so a last point one period on is compared as it stands)
+    at = given_x - x0
+    if not periodic:
+        at = np.clip(at, 0.0, length)
+    residuals = profile(at) - given_y
+    k = int(np.argmax(np.abs(residuals)))
+    peaks = {}
+    for order in (1, 2, 3):
+        peaks[ORDER_NAMES[order]] = {"fit": profile.peak(order), "points": _difference_peak(x, y, order, steps)}
+    report = profile.check()
+    continuity = ("position, velocity, acceleration and jerk continuous" + (" across the seam" if periodic else "")
+                  if report.continuous(3) else
+                  "; ".join(f"{ORDER_NAMES[d.order]} jumps {d.jump:+.3g} at {d.master:.6g}" for d in
+                            report.discontinuities[:3]))
+    certificate = {
+        "points_read": int(read),
+        "points": int(x.size - averaged),
+        "duplicates_averaged": int(averaged),
+        "periodic": bool(periodic),
+        "net_stroke": float(net),
+        "master_period": length,
+        "master_offset": x0,
+        "master_unit": master_unit,
+        "slave_unit": slave_unit,
+        "smoothing": "gcv" if tolerance is None else "tolerance",
+        "tolerance": tolerance,
+        "lambda": float(lam),
+        "effective_parameters": float(effective),
+        "knots": int(system_k),
+        "knot_placement": placement,
+        "steps": [float(v) for v in steps],
+        "degree": DEGREE,
+        "max_deviation": float(abs(residuals[k])),
+        "max_deviation_at": float(given_x[k]),
+        "max_deviation_row": int(rows[k]),
+        "rms_deviation": float(np.sqrt(np.mean(residuals**2))),
+        "peaks": peaks,
+        "continuity": continuity,
+        "check_ok": bool(report.continuous(3)),
+    }
+    return FitResult(profile, certificate["smoothing"], certificate, residuals, given_x, given_y)
+
+
+def _fit_stretch(x, y, w, slack, lo, hi, periodic, net, tolerance, max_knots, slave_unit) -> dict:
+    """The spline of one stretch [lo, hi] of master positions (the whole period when periodic):
+    its law, start position, smoothing and knots."""
+    length = hi - lo
+    u = (x - lo) / length
     ramp = net * u if periodic else 0.0
     g = y - ramp
     center = float((g.max() + g.min()) / 2)
     yscale = float(np.ptp(g)) or 1.0
     target = (g - center) / yscale
     w = w / w.mean()
+    slack = slack / yscale
 
     placement = "at the points"
     if x.size <= max_knots + (0 if periodic else 1):
-        tau = np.append(u, 1.0) if periodic else u.copy()
-        tau[-1] = 1.0
+        tau = np.concatenate([[0.0], u, [1.0]])
     else:
         placement = "placed: half by the points, half by the shape"
         tau = _quantile_knots(u, max_knots, periodic)
-        pilot = _System(u, target, w, tau, periodic, slack / yscale)
+        pilot = _System(u, target, w, tau, periodic, slack)
         lam = pilot.gcv(refine=0)[0]
         tau = _shape_knots(u, pilot, pilot.coefficients(lam), max_knots, periodic)
-    system = _System(u, target, w, tau, periodic, slack / yscale)
+    system = _System(u, target, w, tau, periodic, slack)
     tol_n = None if tolerance is None else tolerance / yscale
     for _ in range(8):  # knot refinement for a tolerance a coarse knot set cannot meet
         if tol_n is None:
@@ -246,53 +325,48 @@ def fit_points(master, slave, weights=None, *, tolerance=None, periodic: bool = 
             raise validate.fail("tolerance", tolerance, f"at least {best:.3g} {slave_unit}, the smallest largest "
                                 f"deviation a quintic spline on {system.K} knot intervals reaches here")
         placement = "refined where the tolerance was missed"
-        system = _System(u, target, w, finer, periodic, slack / yscale)
+        system = _System(u, target, w, finer, periodic, slack)
     else:
         raise validate.fail("tolerance", tolerance, "a deviation the refined knots reach")
     coef = system.coefficients(lam)
-    profile = _cam(system, coef, length, yscale, center, net, periodic, name, master_unit, slave_unit)
+    law, start = _spline(system, coef, length, yscale, center, net, periodic, x - lo)
+    return {"law": law, "start": start, "lambda": lam * length**5, "effective": system.trace(lam), "knots": system.K,
+            "placement": placement}
 
-    # the certificate: the cam as written, at every given point (a periodic cam unrolls by its
-    # net stroke, so a last point one period on is compared as it stands)
-    at = given_x - x0
-    if not periodic:
-        at = np.clip(at, 0.0, length)
-    residuals = profile(at) - given_y
-    k = int(np.argmax(np.abs(residuals)))
-    peaks = {}
-    for order in (1, 2, 3):
-        peaks[ORDER_NAMES[order]] = {"fit": profile.peak(order), "points": _difference_peak(x, y, order)}
-    report = profile.check()
-    continuity = ("position, velocity, acceleration and jerk continuous" + (" across the seam" if periodic else "")
-                  if report.continuous(3) else
-                  "; ".join(f"{ORDER_NAMES[d.order]} jumps {d.jump:+.3g} at {d.master:.6g}" for d in
-                            report.discontinuities[:3]))
-    certificate = {
-        "points_read": int(read),
-        "points": int(x.size),
-        "duplicates_averaged": int(averaged),
-        "periodic": bool(periodic),
-        "net_stroke": float(net),
-        "master_period": length,
-        "master_offset": x0,
-        "master_unit": master_unit,
-        "slave_unit": slave_unit,
-        "smoothing": "gcv" if tolerance is None else "tolerance",
-        "tolerance": tolerance,
-        "lambda": float(lam * length**5),
-        "effective_parameters": float(system.trace(lam)),
-        "knots": int(system.K),
-        "knot_placement": placement,
-        "degree": DEGREE,
-        "max_deviation": float(abs(residuals[k])),
-        "max_deviation_at": float(given_x[k]),
-        "max_deviation_row": int(rows[k]),
-        "rms_deviation": float(np.sqrt(np.mean(residuals**2))),
-        "peaks": peaks,
-        "continuity": continuity,
-        "check_ok": bool(report.continuous(3)),
-    }
-    return FitResult(profile, certificate["smoothing"], certificate, residuals, given_x, given_y)
+
+def _steps(steps, x0, length, net, periodic) -> list[float]:
+    """Declared steps: master positions strictly inside the points' range, increasing."""
+    if steps is None:
+        return []
+    if isinstance(steps, (str, bytes)) or not hasattr(steps, "__iter__"):
+        raise validate.fail("steps", steps, "a list of master positions")
+    out = []
+    for i, value in enumerate(steps):
+        value = validate.number(f"steps[{i}]", validate.plain(value))
+        if not x0 < value < x0 + length:
+            raise validate.fail(f"steps[{i}]", value, f"inside the points' master range ({x0:.10g} .. "
+                                f"{x0 + length:.10g})")
+        if out and not value > out[-1]:
+            raise validate.fail(f"steps[{i}]", value, f"greater than steps[{i - 1}] ({out[-1]:.10g})")
+        out.append(float(value))
+    if out and net:
+        raise validate.fail("steps", out, "absent with a net stroke (each stretch is fitted on its own, so the "
+                            "period's advance would not be the net stroke exactly)")
+    return out
+
+
+def _stretch(x, lo, hi, first, last) -> np.ndarray:
+    """The points of [lo, hi]: those at a step belong to the stretch after it, except that of
+    several points at one step the first ends the stretch before (the table steps between them)."""
+    inside = (x >= lo) & (x < hi) if not last else (x >= lo) & (x <= hi)
+    if not first:  # points at lo: all but the first of them (it ended the stretch before)
+        at = np.flatnonzero(x == lo)
+        if at.size > 1:
+            inside[at[0]] = False
+    at = np.flatnonzero(x == hi)
+    if not last and at.size > 1:
+        inside[at[0]] = True
+    return inside
 
 
 # -- the points --------------------------------------------------------------------------------------
@@ -386,17 +460,24 @@ def _refuse_steps(x, y, span_range, periodic, length, net):
         i = int(np.flatnonzero(steep)[0])
         raise InputError(f"slave: steps by {dy[i]:+.6g} between master {xs[i]:.10g} and {xs[i + 1]:.10g} "
                          f"(rows {i} and {(i + 1) % x.size}), {slope[i] / max(neighbours[i], 1e-300):.3g} times "
-                         "steeper than either side, should be smooth: a cam cannot follow a step (correct the "
-                         "table, or fit either side of it on its own)")
+                         f"steeper than either side, should be smooth: a cam cannot follow a step (correct the "
+                         f"table, or declare it, steps=[{xs[i + 1]:.10g}] / --step {xs[i + 1]:.10g}, to fit either "
+                         "side on its own)")
 
 
-def _difference_peak(x, y, order: int) -> float:
+def _difference_peak(x, y, order: int, steps=()) -> float:
     """Largest |order-th divided difference| x order! of the points: the raw points' own
-    velocity, acceleration or jerk."""
-    values, xs = y.astype(float), x.astype(float)
-    for k in range(1, order + 1):
-        values = np.diff(values) / (xs[k:] - xs[:-k])
-    return float(np.abs(values).max() * math.factorial(order)) if values.size else 0.0
+    velocity, acceleration or jerk (distinct master positions only; not across a declared step)."""
+    keep = np.concatenate([[True], np.diff(x) > 0])
+    x, y = x[keep], y[keep]
+    best = 0.0
+    for part in np.split(np.arange(x.size), np.searchsorted(x, steps)):
+        values, xs = y[part].astype(float), x[part].astype(float)
+        for k in range(1, order + 1):
+            values = np.diff(values) / (xs[k:] - xs[:-k])
+        if values.size:
+            best = max(best, float(np.abs(values).max() * math.factorial(order)))
+    return best
 
 
 # -- knots -----------------------------------------------------------------------------------------
@@ -781,11 +862,20 @@ def _values(t, i, x, q):
     return b
 
 
-def _cam(system, coef, length, yscale, center, net, periodic, name, master_unit, slave_unit) -> CamProfile:
-    """The fitted spline as a one-segment cam in user units."""
+def _spline(system, coef, length, yscale, center, net, periodic, sites):
+    """The fitted spline in user units: its law and its start position."""
     rows = system.derivative_rows(coef)
     knots = system.tau * length
+    # Knots at the points are written as the points' master positions (1.0, not the
+    # 0.9999999999999964 the basis's 2^-52 grid leaves): that moves a knot by under 1e-13 of the
+    # span, far inside what the check tells from a jump.
+    nearest = np.clip(np.searchsorted(sites, knots), 1, max(sites.size - 1, 1))
+    for candidate in (sites[nearest - 1], sites[np.minimum(nearest, sites.size - 1)]):
+        knots = np.where(np.abs(candidate - knots) <= 1e-13 * length, candidate, knots)
     knots[0], knots[-1] = 0.0, length
+    if not np.all(np.diff(knots) > 0):
+        knots = system.tau * length
+        knots[0], knots[-1] = 0.0, length
     user = np.empty_like(rows)
     user[:, 0] = yscale * (rows[:, 0] - rows[0, 0]) + (net * system.tau[:-1] if periodic else 0.0)
     for nu in range(1, DEGREE + 1):
@@ -794,7 +884,4 @@ def _cam(system, coef, length, yscale, center, net, periodic, name, master_unit,
         user[:, 1] += net / length
     user[0, 0] = 0.0
     law = spline_law(knots.tolist(), user.tolist())
-    start = center + yscale * rows[0, 0]
-    segment = Segment(0.0, law.span, start, start + law.end_position, law, name)
-    return CamProfile((segment,), length, periodic, name=name, master_unit=master_unit, slave_unit=slave_unit,
-                      net_stroke=net if periodic and net else None)
+    return law, center + yscale * rows[0, 0]

@@ -379,3 +379,38 @@ def test_a_hundred_thousand_points():
     law_peak = STROKE * MS.ca / SPAN**2
     assert abs(result.profile.peak(2) / law_peak - 1) < 0.05
     assert result.profile.check().continuous(3)
+
+
+def test_a_declared_step_splits_the_fit_and_the_check_reports_it():
+    x = np.linspace(0.0, 10.0, 101)
+    y = np.where(x < 5.0, 0.0, 1.0) + 0.01 * x**2
+    xs = np.insert(x, 50, 5.0)  # the table steps at 5: two rows there, 0.25 and 1.25
+    ys = np.insert(y, 50, 0.25)
+    result = fit_points(xs, ys, steps=[5.0], tolerance=1e-6)
+    profile = result.profile
+    assert len(profile.segments) == 2 and result.certificate["steps"] == [5.0]
+    assert profile(5.0, side="left") == pytest.approx(0.25, abs=1e-6)
+    assert profile(5.0) == pytest.approx(1.25, abs=1e-6)
+    jumps = profile.check().at(5.0, 0)
+    assert len(jumps) == 1 and jumps[0].jump == pytest.approx(1.0, abs=1e-5)
+    assert np.abs(profile(xs[:50]) - ys[:50]).max() <= 1e-6
+    assert ecam.parse_cam(tomllib.loads(profile.to_toml())) == profile
+    with pytest.raises(InputError, match=r"steps\[0\]: 12 should be inside the points' master range"):
+        fit_points(xs, ys, steps=[12.0])
+
+
+def test_the_fitted_seed_cam_runs_on_the_rig_as_the_seed_does(tmp_path):
+    import hil_sim
+    from hil_sim import SCENES_DIR
+    from hil_sim.scene import load_scene
+
+    done = run("fit", EXPORTS / "combination_drrd.codesys.st", "--periodic", "--slave-unit", "in", "--tolerance",
+               1e-5, "-o", tmp_path / "drrd.toml")
+    assert done.returncode == 0, done.stderr
+    fitted = hil_sim.run_scene(load_scene(SCENES_DIR / "stiff_coupling.toml", cam=ecam.load_cam(tmp_path / "drrd.toml")))
+    seed = hil_sim.run_scene(load_scene(SCENES_DIR / "stiff_coupling.toml"))
+    assert fitted.passed and seed.passed
+    by_name = {check.name: check.value for check in seed.checks}
+    for check in fitted.checks:
+        if check.name in ("coupling_peak_torque", "coupling_rms_torque", "tracking_error"):
+            assert check.value == pytest.approx(by_name[check.name], rel=0.05), check.name

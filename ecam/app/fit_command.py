@@ -31,6 +31,9 @@ def add_fit_command(sub) -> None:
     p.add_argument("--period", type=float,
                    help="master period (default: last master minus first: the last row repeats the first one "
                         "period on)")
+    p.add_argument("--step", type=float, action="append", metavar="X",
+                   help="a master position where the table steps on purpose: the stretches either side are "
+                        "fitted on their own (repeat for more; default: none, and a step is refused)")
     p.add_argument("--name", help="the cam's name (default: the file's stem)")
     p.add_argument("--master-unit", help="master unit (default: deg, or what ecam's CSV says)")
     p.add_argument("--slave-unit", help="slave unit (default: mm, or what ecam's CSV says)")
@@ -56,7 +59,8 @@ def cmd_fit(args) -> int:
     result = fit_points(master, slave, weights, tolerance=args.tolerance, periodic=bool(periodic or net_stroke),
                         net_stroke=net_stroke, period=period, name=args.name or Path(args.points).stem,
                         master_unit=args.master_unit or settings.get("master_unit", "deg"),
-                        slave_unit=args.slave_unit or settings.get("slave_unit", "mm"), max_knots=args.max_knots)
+                        slave_unit=args.slave_unit or settings.get("slave_unit", "mm"), max_knots=args.max_knots,
+                        steps=args.step)
     files = {}
     if args.output:
         path = Path(args.output)

@@ -47,6 +47,7 @@ gain; then the highest position-loop gain with the same margins on the position 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
@@ -418,7 +419,16 @@ class AxisLoops:
 
     @classmethod
     def from_setup(cls, setup: AxisSetup, cycle_s: float) -> "AxisLoops":
-        """The loops of the axis ``setup`` builds, as it runs (its model and effects)."""
+        """The loops of the axis ``setup`` builds, as it runs (its model and effects); the same
+        object for the same loop (a search's trials at other speeds share it)."""
+        if setup.model != "auto":
+            # what the loop does not depend on (the position scale, the cam's excitation, which
+            # only an "auto" model reads) is left out of the key
+            setup = replace(setup, excitation_hz=0.0, counts_per_motor_rad=None)
+        return _loops_of(setup, cycle_s)
+
+    @classmethod
+    def _build(cls, setup: AxisSetup, cycle_s: float) -> "AxisLoops":
         axis = setup.build(cycle_s, 0)
         dt = axis.dt
         return cls(loop_model(axis.mechanics, dt, axis.model, axis.plant_effects,
@@ -431,11 +441,22 @@ class AxisLoops:
         return (self.contact,) if self.gap is None else (self.contact, self.gap)
 
     def assess(self, gains: Gains) -> "Assessment":
-        """Every loop's margins with ``gains``."""
+        """Every loop's margins with ``gains`` (the same object for the same gains)."""
+        cache = self.__dict__.setdefault("_assessed", {})
+        if gains not in cache:
+            cache[gains] = self._assess(gains)
+        return cache[gains]
+
+    def _assess(self, gains: Gains) -> "Assessment":
         velocity = [m.velocity_margins(gains) for m in self.models]
         position = [m.position_margins(gains) for m in self.models]
         return Assessment(velocity[0], position[0],
                           None if self.gap is None else worst(velocity[1], position[1]))
+
+
+@functools.lru_cache(maxsize=32)
+def _loops_of(setup: AxisSetup, cycle_s: float) -> AxisLoops:
+    return AxisLoops._build(setup, cycle_s)
 
 
 @dataclass(frozen=True)

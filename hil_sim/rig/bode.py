@@ -4,8 +4,8 @@ the position loop, the crossover with its phase margin, the phase crossover with
 margin).
 
 The responses are :mod:`hil_sim.tuning`'s, of the loop as the run has it; they travel in the
-report's series (``loop_frequency_hz``, ``loop_velocity``, ``loop_position``, complex), not in
-its JSON. The bytes are deterministic, as the rig's other figure (:mod:`hil_sim.rig.plot`), and
+report's series (``loop_frequency_hz``, ``loop_velocity``, ``loop_position``, complex; and
+``loop_gap_velocity``, the velocity loop in the backlash gap, with backlash), not in its JSON. The bytes are deterministic, as the rig's other figure (:mod:`hil_sim.rig.plot`), and
 matplotlib is imported only inside the functions that draw.
 """
 
@@ -34,10 +34,14 @@ _LOWEST_SHARE = 0.01
 
 def bode_series(setup: AxisSetup, cycle_s: float) -> dict:
     """The open loops of the axis ``setup`` builds, for the report's series."""
-    contact = AxisLoops.from_setup(setup, cycle_s).contact
+    loops = AxisLoops.from_setup(setup, cycle_s)
+    contact = loops.contact
     velocity, position = contact.loops(setup.gains)
-    return {"loop_frequency_hz": contact.frequencies, "loop_velocity": velocity,
-            "loop_position": position}
+    out = {"loop_frequency_hz": contact.frequencies, "loop_velocity": velocity,
+           "loop_position": position}
+    if loops.gap is not None:  # the velocity loop in the backlash gap, on the same frequencies
+        out["loop_gap_velocity"] = loops.gap.at(contact.frequencies).loops(setup.gains)[0]
+    return out
 
 
 def has_bode(report: Report) -> bool:
@@ -55,8 +59,11 @@ def bode_figure(report: Report, width_in: float = 11.0):
         raise InputError(f"report {report.scene!r}: no open-loop response to plot")
     series = report.series
     f = np.asarray(series["loop_frequency_hz"])
-    loops = (("velocity loop", np.asarray(series["loop_velocity"]), _PERIOD_COLOURS[0]),
-             ("position loop", np.asarray(series["loop_position"]), _PERIOD_COLOURS[1]))
+    loops = [("velocity loop", np.asarray(series["loop_velocity"]), _PERIOD_COLOURS[0]),
+             ("position loop", np.asarray(series["loop_position"]), _PERIOD_COLOURS[1])]
+    if "loop_gap_velocity" in series:  # with backlash: the motor alone, in the gap
+        loops.append(("velocity loop in the backlash gap", np.asarray(series["loop_gap_velocity"]),
+                      _PERIOD_COLOURS[2]))
     first = margins_of(f, loops[0][1]).crossover_hz or f[-1]
     shown = f >= _LOWEST_SHARE * first
     fig = Figure(figsize=(width_in, 6.0), layout="constrained")

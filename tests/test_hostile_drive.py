@@ -260,11 +260,12 @@ print("sdo", answer is not None and bytes(answer.data[4:8]).hex())
 drive.send_signal(signal.SIGTERM)
 out, err = drive.communicate(timeout=20)
 print("exit", drive.returncode)
+print(out.strip().splitlines()[-2])
 peer.shutdown()
 """, timeout=120)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.split("\n")[:4] == ["boot-up True", "heartbeat True", "sdo 92010200", "exit 0"], \
-        run.stdout + run.stderr
+    assert run.stdout.split("\n")[:5] == ["boot-up True", "heartbeat True", "sdo 92010200", "exit 0",
+                                          "dropped 4 received frames that were no CAN frames"], run.stdout + run.stderr
 
 
 # ---------------------------------------------------------------------------------------------

@@ -146,6 +146,9 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     if deaf:
         raise EcamError(f"the drive's serving thread on interface {args.interface!r} channel "
                         f"{channel!r} stopped: the drive answered nothing more (see the log)")
+    dropped = drive.runner.dropped + getattr(bus, "dropped", 0)
+    if dropped:  # counted where they entered (the drive's runner, the echo-free UDP bus)
+        print(f"dropped {dropped} received frames that were no CAN frames", flush=True)
     print("virtual drive stopped", flush=True)
     return 0
 

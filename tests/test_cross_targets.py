@@ -342,21 +342,24 @@ POLY_WIDE_EXCEPTION = {("cortex-m4", True): 2.35}
 
 
 def _expanded_tables(narrow: bool):
+    """Every kind (the issue's limits are the quintic's; the others are printed)."""
     from ecam.app.bench import MASTER_COUNTS, SEED_CAM, STROKE_COUNTS, bench_profile
     from ecam.compile import compile_table
 
     profile = bench_profile(SEED_CAM)
     low, high = profile.slave_range
     stroke = instructions.NARROW_STROKE_COUNTS if narrow else STROKE_COUNTS
-    tables = [compile_table(profile, interp="quintic", points=points, master_counts=MASTER_COUNTS,
-                            slave_counts_per_unit=stroke / (high - low), horner_bits=32 if narrow else 64)
-              for points in (145, 97)]  # fmt: skip
-    tables.append(CamTable.from_bytes((FIRMWARE / "vectors" / "rotary_knife_quintic.bin").read_bytes()))
+    tables = []
+    for kind in ("linear", "cubic", "quintic"):
+        tables += [compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
+                                 slave_counts_per_unit=stroke / (high - low), horner_bits=32 if narrow else 64)
+                   for points in (145, 97)]  # fmt: skip
+        tables.append(CamTable.from_bytes((FIRMWARE / "vectors" / f"rotary_knife_{kind}.bin").read_bytes()))
     return tables
 
 
 @pytest.mark.parametrize("where", ["x86-64", "cortex-m4"])
-def test_expanded_quintic_against_minimal_precomputed_horner(tmp_path, capsys, where):
+def test_expanded_form_against_minimal_precomputed_horner(tmp_path, capsys, where):
     """x86-64: the 64-bit kernels (the bench's 1e9-count tables); Cortex-M4: tables compiled with
     horner_bits=32 (the narrow kernels), and the golden rotary knife (64-bit kernels, a net
     stroke), printed, not asserted against the Q16 yardstick (its scales leave no 32-bit format)."""
@@ -373,13 +376,14 @@ def test_expanded_quintic_against_minimal_precomputed_horner(tmp_path, capsys, w
             else:
                 m = instructions.m4_counts(work, table.to_bytes(), table.format, 100, shared=tmp_path, expanded=True)
             pow2 = table.format.step_shift >= 0
-            what = (f"{where} quintic {table.points} points (h = {table.format.step_counts}, horner "
+            what = (f"{where} {table.interp} {table.points} points (h = {table.format.step_counts}, horner "
                     f"{32 if instructions.narrow_horner(table) else 64}): expanded {m.poly_inside:g} inside / "
                     f"{m.poly_wide:g} any int64, same format hand-written {m.expanded:g}, minimal Q16 {m.q16:g}: "
-                    f"{m.poly_ratio_inside:.2f}x / {m.poly_ratio_wide:.2f}x; Hermite runtime {m.runtime_inside:g}")
+                    f"{m.poly_ratio_inside:.2f}x / {m.poly_ratio_wide:.2f}x; Hermite runtime {m.runtime_inside:g} "
+                    f"({m.runtime_ratio_q16:.2f}x the Q16 lookup; {m.ratio_inside:.2f}x its own format hand-written)")
             print(what)
             assert m.checksums_match, what  # the expanded form returns the runtime's bits
-            if where == "cortex-m4" and not instructions.narrow_horner(table):
+            if table.interp != "quintic" or (where == "cortex-m4" and not instructions.narrow_horner(table)):
                 continue
             assert m.poly_ratio_inside <= instructions.POLY_LIMITS["inside"], what
             assert m.poly_ratio_wide <= POLY_WIDE_EXCEPTION.get((where, pow2), instructions.POLY_LIMITS["wide"]), what

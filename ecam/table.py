@@ -431,7 +431,7 @@ class CamTable:
             _reject(failure[0], f"blob {failure[1]}")
         if len(data) != HEADER_BYTES + payload_bytes:
             _reject("ECAM_E_LENGTH", f"blob length {len(data)} should be {HEADER_BYTES + payload_bytes}")
-        payload = data[HEADER_BYTES:]
+        payload = memoryview(data)[HEADER_BYTES:]  # no copy of a large payload
         if zlib.crc32(payload) != payload_crc:
             _reject("ECAM_E_PAYLOAD_CRC", f"blob payload_crc32 0x{payload_crc:08x} does not match the payload")
         arrays = np.frombuffer(payload, dtype="<i4").reshape(fmt.values_per_point, points)

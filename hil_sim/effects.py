@@ -13,12 +13,16 @@ Sources of the defaults (catalogue figures, read from the vendors' published dat
 * backlash: precision planetary servo gearheads are sold as "standard" <= 3 arcmin and "reduced"
   <= 1 arcmin (WITTENSTEIN alpha SP+/TP+ catalogues; Beckhoff AG2300 SP and AG2400 TP data
   sheets), economy units <= 8 arcmin;
-* motor-side Coulomb friction: a planetary gearhead's no-load torque at the input is 3-9 % of
-  its rated output torque over the ratio, measured at 3000 rpm (Beckhoff AG2300/AG2400 data
-  sheets, T012), about half of it speed-independent, and a servo motor adds its own static
-  friction (a datasheet field, Kollmorgen "Motor Data Legend": M_R); a servo's peak torque is
-  3-5 times its standstill torque (Siemens 1FT7044: 23 N m against 5 N m), so 1 % of the
-  drive's torque limit stands for both;
+* motor-side Coulomb friction: the gearhead's catalogue no-load (idle) torque at the input,
+  T012, where the scene names a gearhead (``[mechanics] gearhead`` or
+  ``gearhead_idle_torque``; WITTENSTEIN alpha SP+ 075 MF: 0.96 N m at i = 5, 0.52 N m at i = 10,
+  Beckhoff AG2300 SP075 MF data sheet, measured at n1 = 3000 rpm, so taken as Coulomb friction
+  it is on the safe side at lower speeds). Without a gearhead's data: a planetary gearhead's
+  no-load torque at the input is 3-9 % of its rated output torque over the ratio (Beckhoff
+  AG2300/AG2400 data sheets, T012), about half of it speed-independent, and a servo motor adds
+  its own static friction (a datasheet field, Kollmorgen "Motor Data Legend": M_R); a servo's
+  peak torque is 3-5 times its standstill torque (Siemens 1FT7044: 23 N m against 5 N m), so
+  1 % of the drive's torque limit stands for both;
 * load-side Coulomb friction: no catalogue gives a rule (rolling guides and bearings have
   friction coefficients of 0.002-0.01); the rig assumes 1 % of the torque the motor can put on
   the load shaft;
@@ -158,7 +162,7 @@ class EffectValues:
 
 
 def resolve(mechanics: Mechanics, given_mechanics: dict, given_drive: dict,
-            control_rate_hz: float) -> EffectValues:
+            control_rate_hz: float, gearhead_idle_torque: float | None = None) -> EffectValues:
     """Each effect's value for a machine: the scene's where it gives one, else the default.
 
     Parameters
@@ -172,6 +176,9 @@ def resolve(mechanics: Mechanics, given_mechanics: dict, given_drive: dict,
         ``velocity_filter_hz``, ``current_loop_bandwidth_hz``, ``computation_delay``).
     control_rate_hz : float
         The drive's controller rate [Hz] (the speed filter's default scales with it).
+    gearhead_idle_torque : float, optional
+        The gearhead's catalogue no-load torque T012 at its input [N m]: the motor-side
+        friction's default when given.
 
     Returns
     -------
@@ -206,11 +213,16 @@ def resolve(mechanics: Mechanics, given_mechanics: dict, given_drive: dict,
                                     "rad" if geared else ""))
 
     limit = m.motor_torque_limit
-    motor_default = DEFAULT_MOTOR_FRICTION_SHARE * limit if limit else 0.0
-    add("motor_coulomb_friction", *given(
-        given_mechanics, "motor_coulomb_friction", motor_default,
-        "1 % of motor_torque_limit (gearhead no-load torque and motor friction)" if limit else
-        "none (no motor_torque_limit to scale it by)", "N m" if limit else ""))
+    if gearhead_idle_torque is not None:
+        add("motor_coulomb_friction", *given(
+            given_mechanics, "motor_coulomb_friction", gearhead_idle_torque,
+            "the gearhead's catalogue no-load torque T012 at its input", "N m"))
+    else:
+        motor_default = DEFAULT_MOTOR_FRICTION_SHARE * limit if limit else 0.0
+        add("motor_coulomb_friction", *given(
+            given_mechanics, "motor_coulomb_friction", motor_default,
+            "1 % of motor_torque_limit (gearhead no-load torque and motor friction)" if limit
+            else "none (no motor_torque_limit to scale it by)", "N m" if limit else ""))
 
     load_scale = limit * m.gear_efficiency / m.gear_ratio if limit else 0.0
     add("load_coulomb_friction", *given(

@@ -12,6 +12,7 @@ import json
 from dataclasses import dataclass, field
 
 from ecam.export import json_safe
+from hil_sim.sizing_text import sizing_lines
 
 
 @dataclass(frozen=True)
@@ -234,6 +235,7 @@ class Report:
         if self.summary.get("tuning"):
             lines.append(_tuning_line(self.summary["tuning"]))
         lines += ["  " + c.line() for c in self.checks]
+        lines += sizing_lines(self.summary.get("sizing"))
         bus = self.summary.get("bus", {})
         if bus:
             lines.append(f"bus: {bus.get('bitrate')} bit/s, {bus.get('budget_bits')} bits per "

@@ -56,6 +56,16 @@ Layout (units in the names or below; SI unless said otherwise)::
     load_coulomb_friction = 1.0        # N m
     coupling_inertia = 2e-4            # kg m^2, half to each side of the spring
 
+    # sizing (hil_sim.sizing_spec): the motor, the drive module and the gearhead, by catalogue
+    # name (hil_sim/catalogue.toml) and/or field by field; all optional
+    [motor]
+    model = "1FT7044-AK7"              # stall_torque, rated_torque, rated_speed_rpm, ...
+    # [drive]: module = "...", rated_current, peak_current, dc_bus_voltage,
+    #          dc_link_capacitance, brake_chopper_voltage, brake_resistor_power
+    # [mechanics]: gearhead = "...", gearhead_stiffness, gearhead_input_inertia,
+    #          gearhead_idle_torque, gearhead_acceleration_torque, gearhead_emergency_torque,
+    #          gearhead_max_input_speed_rpm, gearhead_shock_factor
+
     [bus]
     bitrate = 1000000
     [bus.faults]                       # optional, see hil_sim.faults.Faults
@@ -75,6 +85,7 @@ Layout (units in the names or below; SI unless said otherwise)::
     phase_margin_deg = 45.0            # the loop_stability check (hil_sim.tuning)
     gain_margin_db = 6.0
     sensitivity_peak = 2.0             # Ms = max |1 / (1 + L)|
+    inertia_ratio = 10.0               # optional: load (reflected) over motor-side inertia
 
     [duration]                         # exactly one of
     master_periods = 3.0               # at the cruise speed
@@ -100,6 +111,7 @@ from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
 from hil_sim.faults import FRAME_KINDS, Faults
 from hil_sim.filters import check_notch_hz
+from hil_sim.sizing_spec import DRIVE_SIZING_KEYS, GEARHEAD_KEYS, SizingSpec, parse_sizing
 
 #: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
@@ -278,6 +290,7 @@ class LimitsSpec:
     phase_margin_deg: float = 45.0
     gain_margin_db: float = 6.0
     sensitivity_peak: float = 2.0
+    inertia_ratio: float | None = None
 
 
 @dataclass(frozen=True)
@@ -322,6 +335,9 @@ class Scene:
         Free text.
     fidelity : {"auto", "full", "ideal"}
         How much of the effects a run models (:mod:`hil_sim.effects`).
+    sizing : hil_sim.sizing_spec.SizingSpec
+        The motor, drive module and gearhead (``[motor]``, and the sizing fields of
+        ``[drive]`` and ``[mechanics]``); empty when the scene gives none.
     """
 
     name: str
@@ -336,6 +352,7 @@ class Scene:
     duration: DurationSpec
     description: str = ""
     fidelity: str = "auto"
+    sizing: SizingSpec = field(default_factory=SizingSpec)
 
     def with_master_speed(self, speed: float) -> "Scene":
         """The same scene at another master speed [master units/s]."""
@@ -412,7 +429,8 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
         raise fail("cam", cam, "an ecam.CamProfile")
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
-                                              "limits", "duration", "sweep"})
+                                              "limits", "duration", "sweep",
+                                              "motor"})
     # [sweep] describes a robustness sweep over this scene (hil_sim.sweep_spec, ecam sweep);
     # a run of the scene itself ignores it.
     name = top.text("name", default=Path(source).stem)
@@ -422,10 +440,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     master = _master(top)
     cam_spec = _cam(top, base, cam)
     drive = _drive(top)
+    sizing = parse_sizing(top)
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
-                 cam=cam_spec, drive=drive, mechanics=_mechanics(top),
+                 cam=cam_spec, drive=drive, mechanics=_mechanics(top, sizing),
                  bus=_bus(top), limits=_limits(top), duration=_duration(top, drive.cycle_s),
-                 description=description, fidelity=fidelity)
+                 description=description, fidelity=fidelity, sizing=sizing)
 
 
 def _master(top: Fields) -> MasterSpec:
@@ -513,7 +532,8 @@ def _cam_file(raw: Fields, written: str, base: Path) -> Path:
 def _drive(top: Fields) -> DriveSpec:
     raw = top.table("drive", {"node_id", "cycle_s", "substeps", "following_error_window",
                               "model", "gains", "feedforward", "speed_symmetrization",
-                              "friction_feedforward", *DRIVE_FIELDS})
+                              "friction_feedforward", *DRIVE_FIELDS,
+                              *DRIVE_SIZING_KEYS})
     gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
     gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
@@ -560,17 +580,21 @@ def _drive_effects(raw: Fields) -> tuple:
     return tuple(out)
 
 
-def _mechanics(top: Fields) -> MechanicsSpec:
+def _mechanics(top: Fields, sizing: SizingSpec = SizingSpec()) -> MechanicsSpec:
     raw = top.table("mechanics", {*MECHANICS_KEYS, "slave_units_per_load_radian",
-                                  *MECHANICS_FIELDS}, required=True)
+                                  *MECHANICS_FIELDS, *GEARHEAD_KEYS}, required=True)
     values = []
     for key in MECHANICS_KEYS:
-        value = raw.number(key, required=key == "motor_inertia", maximum=MECHANICS_RANGES[key],
+        # a [motor] gives the rotor's inertia (hil_sim.sizing_spec)
+        required = key == "motor_inertia" and sizing.motor is None
+        value = raw.number(key, required=required, maximum=MECHANICS_RANGES[key],
                            minimum=MECHANICS_MINIMA.get(key))
         if key == "load_inertia" and value is not None and 0.0 < value < MIN_LOAD_INERTIA:
             raise raw.error(f"{raw.name(key)}: {show(value)} should be 0 or >= {MIN_LOAD_INERTIA:g}")
         if value is not None:
             values.append((key, value))
+    if sizing.given:  # the drive train folded into the machine (hil_sim.sizing_spec)
+        values = list(sizing.fold(dict(values)).items())
     effects = tuple((key, raw.number(key, minimum=0.0, maximum=EFFECT_RANGES[key]))
                     for key in MECHANICS_FIELDS if key in raw)
     spec = MechanicsSpec(values=tuple(values), slave_units_per_load_radian=raw.number(
@@ -622,7 +646,8 @@ def _limits(top: Fields) -> LimitsSpec:
         phase_margin_deg=raw.number("phase_margin_deg", default=45.0, minimum=0.0, maximum=90.0),
         gain_margin_db=raw.number("gain_margin_db", default=6.0, minimum=0.0, maximum=60.0),
         sensitivity_peak=raw.number("sensitivity_peak", default=2.0, minimum=1.0,
-                                    maximum=100.0, strict=True))
+                                    maximum=100.0, strict=True),
+        inertia_ratio=raw.number("inertia_ratio", minimum=0.0, strict=True))
 
 
 def _window(raw: Fields, key: str) -> tuple[float, float] | None:

@@ -22,6 +22,9 @@ from hil_sim.rig.plan import PreparedRun, plan_run
 from hil_sim.scene import DurationSpec, load_scene, parse_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
+# The sizing checks (issue 21) follow the drive's: without [motor] they are reported without limits.
+SIZING_CHECKS = ("motor_thermal", "motor_speed_torque", "motor_speed", "drive_current",
+                 "drive_peak_current", "regeneration", "inertia_ratio", "gearhead_torque")
 
 
 def scene(name, **changes):
@@ -70,7 +73,8 @@ def test_stiff_scene_passes_and_says_why_it_runs_its_model(stiff):
     names = [c["name"] for c in data["checks"]]
     assert names == ["following_error", "tracking_error", "coupling_peak_torque",
                      "coupling_rms_torque", "wind_up", "resonance_excitation", "bus_load",
-                     "motor_saturation", "faults", "loop_stability"]
+                     "motor_saturation", "faults", "loop_stability",
+                     *SIZING_CHECKS]
     assert stiff.check("tracking_error").value < 0.001  # in
     assert 40.0 < stiff.check("bus_load").value < 60.0  # % at 1 Mbit/s
     assert "timing" not in data
@@ -239,7 +243,8 @@ def test_saturation_bus_and_faults_checks():
     report = analysis.analyse(run, record())
     assert [c.name for c in report.checks] == [
         "following_error", "tracking_error", "coupling_peak_torque", "coupling_rms_torque",
-        "wind_up", "resonance_excitation", "bus_load", "motor_saturation", "faults"]
+        "wind_up", "resonance_excitation", "bus_load", "motor_saturation", "faults",
+        *SIZING_CHECKS]
     assert report.summary["bus"]["setup_frames"] == 10
 
 

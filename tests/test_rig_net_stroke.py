@@ -17,7 +17,7 @@ from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.rig.cam import compile_cam
 from hil_sim.rig.plan import cruise_s
 from hil_sim.rig.search import PERIODS_AT_CRUISE, trial_scene
-from ecam.errors import SimulationError
+from ecam.errors import CamFileError, SimulationError
 from hil_sim.scene import DurationSpec, load_scene
 
 KNIFE = SCENES_DIR / "rotary_knife.toml"
@@ -260,10 +260,19 @@ def test_the_scene_in_the_users_words(knife, tmp_path):
     assert tables[0] == tables[1] and tables[2] == compile_cam(
         replace(knife, cam=replace(knife.cam, tolerance=0.001))).table.to_bytes()  # 1 count = 0.001 deg
     path.write_text(text.replace("gear_ratio = 0.2 ", "gear_ratio = 5.0 "))  # meant as 5:1
+    # the knife names its gearhead (issue 21): the ratio the wrong way round is refused there
+    with pytest.raises(CamFileError, match=r"mechanics\.gear_ratio: 5 should be 0\.2, the ratio "
+                                           r"of gearhead 'SP075-MF1-5'"):
+        load_scene(path)
+    # without the gearhead's name it runs, and the report shows the speed-up
+    path.write_text(text.replace("gear_ratio = 0.2 ", "gear_ratio = 5.0 ")
+                    .replace('gearhead = "SP075-MF1-5"', "gearhead_input_inertia = 0.68e-4"))
     report = _fast(replace(load_scene(path), duration=DurationSpec(cycles=20)))
     assert report.summary["mechanics"]["gear"] == "1:5 speed-up"
     reduction = _fast(replace(knife, duration=DurationSpec(cycles=20))).summary["mechanics"]
     assert reduction["gear"] == "5:1 reduction"
     # J_load r^2 / eta over J_motor: r = 5 instead of 0.2 is 25^2 times the load's share
     assert report.summary["mechanics"]["inertia_ratio"] == pytest.approx(625 * reduction["inertia_ratio"], rel=1e-9)
-    assert reduction["inertia_ratio"] == pytest.approx(0.0674 * 0.2**2 / 0.97 / 5.43e-4, rel=1e-9)
+    # the motor side: the 1FT7044's rotor and the SP075's input inertia
+    assert reduction["inertia_ratio"] == pytest.approx(
+        0.0674 * 0.2**2 / 0.97 / (5.43e-4 + 0.68e-4), rel=1e-9)

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ecam.app.multi import scene_labels
+from ecam.app.sizing_html import sizing_section
 from ecam.errors import EcamError
 
 __all__ = ["html_report"]
@@ -452,6 +453,7 @@ def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> s
         parts.append('<div class="failed-lines mono">'
                      + "\n".join(_e(c.line()) for c in report.failed) + "</div>")
     parts.append("<h3>Checks</h3>" + _checks_table(report))
+    parts.append(sizing_section(data))  # motor, module, gearhead: required against rated
     parts.append(f"<h3>Over the master position [{_e(units.get('master', ''))}]</h3>"
                  + _plots(report))
     parts.append(_tuning_section(report))

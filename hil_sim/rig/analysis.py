@@ -18,6 +18,7 @@ from hil_sim.rig.cam import cam_spectrum
 from hil_sim.rig.loop import Record
 from hil_sim.rig.plan import PreparedRun
 from hil_sim.rig.stability import loop_stability_check
+from hil_sim.rig.sizing_checks import fill_coupling, sizing_checks
 
 
 def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
@@ -41,6 +42,9 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
     ]
     if setup is not None:
         checks.append(loop_stability_check(run, setup, record))
+    sized, sizing_summary, sizing_series = sizing_checks(run)  # motor, module, gearhead
+    checks += sized
+    fill_coupling(sizing_summary, checks)
     plan, period = run.plan, run.cam.profile.master_period
     series = {"time_s": (np.arange(record.cycles) + 1.0) * plan.cycle_s,
               "master_position": plan.master_units[:record.cycles] % period,
@@ -48,10 +52,10 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
               "peak_coupling_torque": record.peak_coupling_torque,
               "peak_motor_torque": record.peak_motor_torque,
               "peak_twist": record.peak_twist,
-              "following_error": record.following_error}
+              "following_error": record.following_error, **sizing_series}
     return Report(scene=run.scene.name, model=record.model, model_reason=record.model_reason,
-                  cycles=record.cycles, checks=checks, summary=summary(run, record),
-                  series=series)
+                  cycles=record.cycles, checks=checks,
+                  summary={**summary(run, record), "sizing": sizing_summary}, series=series)
 
 
 def _at_master(run: PreparedRun, cycle: int) -> str:

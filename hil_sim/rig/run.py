@@ -123,8 +123,10 @@ def prepare(scene: Scene, tuning=None) -> tuple[PreparedRun, FaultInjector | Non
     plan = plan_run(scene, cam, jitter, cycles)
     excitation_hz = significant_harmonic_hz(cam_acceleration(profile),
                                             profile.master_period / abs(speed_units))
+    gearhead = scene.sizing.gearhead
     values = effects.resolve(mechanics, dict(scene.mechanics.effects), dict(scene.drive.effects),
-                             scene.drive.control_rate_hz)
+                             scene.drive.control_rate_hz,
+                             gearhead.idle_torque if gearhead is not None else None)
     if tuning is None:
         tuning = commission(scene, mechanics, values)
     run = PreparedRun(scene=scene, cam=cam, mechanics=mechanics, plan=plan,

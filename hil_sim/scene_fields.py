@@ -44,12 +44,16 @@ SCENE_TABLES = {
                  "effects.",
     "bus": "The CAN bus.",
     "bus.faults": "Faults injected on the bus, from a seeded generator (hil_sim.faults.Faults).",
+    "motor": "The servo motor, for the sizing checks (hil_sim.sizing_spec): a catalogue name "
+             "(hil_sim/catalogue.toml) and/or its fields, SI units, rpm where the name says so.",
     "limits": "The limits of the report's checks.",
     "duration": "How long to run: exactly one of these.",
 }
 
 _MECHANICS_TEXT = {
-    "motor_inertia": ("Rotor inertia plus everything turning at motor speed.", "kg m^2", REQUIRED, ""),
+    "motor_inertia": ("Rotor inertia plus everything turning at motor speed; the gearhead's "
+                      "input inertia is added to it.", "kg m^2", REQUIRED,
+                      "required unless [motor] gives rotor_inertia"),
     "gear_ratio": ("r = load speed / motor speed; 0.1 is a 10:1 reduction.", "", 1.0, ""),
     "gear_efficiency": ("The gear's efficiency eta.", "", 1.0, ""),
     "motor_damping": ("Viscous damping on the motor side.", "N m s/rad", 0.0, ""),
@@ -81,6 +85,90 @@ def _mechanics() -> list[Field]:
     return rows
 
 
+_SIZING = "hil_sim.sizing_spec (catalogue values: hil_sim/catalogue.toml, each with its source)"
+_CATALOGUE = "the catalogue entry named, else none"
+
+
+def _sizing(table: str, key: str, text: str, unit: str = "", *, zero: bool = False,
+            maximum: float, minimum: float = 0.0, default_text: str = _CATALOGUE,
+            limits: str = "", probe: bool = True, when=()) -> Field:
+    return Field(table, key, "number", text, unit=unit, default_text=default_text,
+                 minimum=minimum, maximum=maximum, exclusive_minimum=not zero and minimum == 0.0,
+                 limits=limits, probe=probe, when=when, source=_SIZING)
+
+
+_MODEL = (("motor.model", "1FT7044-AK7"),)
+_SIZING_FIELDS = (
+    Field("motor", "model", "string", "A motor of the catalogue (hil_sim/catalogue.toml): its "
+          "fields are the defaults of the ones below.", default_text="none: every required field "
+          "given here", source=_SIZING),
+    _sizing("motor", "stall_torque", "M0: the S1 curve at standstill (required).", "N m",
+            maximum=1e6, limits=">= rated_torque, <= max_torque", probe=False),
+    _sizing("motor", "rated_torque", "M_N, the S1 curve's point at rated_speed_rpm (required).",
+            "N m", maximum=1e6, limits="<= stall_torque", probe=False),
+    _sizing("motor", "rated_speed_rpm", "n_N (required).", "rpm", maximum=1e6, when=_MODEL),
+    _sizing("motor", "max_torque", "The motor's peak torque (required).", "N m", maximum=1e6,
+            limits=">= stall_torque", when=_MODEL),
+    _sizing("motor", "max_speed_rpm", "The motor's maximum speed (required).", "rpm",
+            maximum=1e6, when=_MODEL),
+    _sizing("motor", "torque_constant", "kT (required).", "N m/A", maximum=1e4, when=_MODEL),
+    _sizing("motor", "voltage_constant", "kE, line-to-line rms back-EMF per rad/s (a catalogue's "
+            "V/1000 rpm divided by 104.72) (required).", "V s/rad", maximum=1e4, when=_MODEL),
+    _sizing("motor", "thermal_time_constant_s", "The winding's thermal time constant (required).",
+            "s", maximum=1e7, when=_MODEL),
+    _sizing("motor", "rotor_inertia", "The rotor's inertia: mechanics.motor_inertia when that is "
+            "not given (required).", "kg m^2", maximum=1e4, when=_MODEL),
+    _sizing("motor", "winding_resistance", "Phase resistance, for the voltage limit.", "ohm",
+            zero=True, maximum=1e4, default_text="the catalogue's, else 0", when=_MODEL),
+    _sizing("motor", "inductance", "Rotating-field inductance, for the voltage limit.", "H",
+            zero=True, maximum=1e2, default_text="the catalogue's, else 0", when=_MODEL),
+    Field("motor", "pole_pairs", "integer", "Pole pairs (the inductance's electrical speed).",
+          default_text="the catalogue's, else 1", minimum=1, maximum=1000, when=_MODEL,
+          source=_SIZING),
+    _sizing("motor", "shaft_stiffness", "The motor shaft's torsional stiffness: in series with "
+            "the coupling and the gearhead on an axis with a spring.", "N m/rad", maximum=1e12,
+            default_text="the catalogue's, else rigid", when=_MODEL),
+    Field("motor", "torque_current_points", "array", "[[current, torque], ...] from [0, 0]: the "
+          "motor's torque over current (it saturates); the drive current checks and the clamp "
+          "read it.", unit="A, N m", default_text="the catalogue's, else the line of "
+          "torque_constant", limits="both increasing", source=_SIZING),
+    Field("drive", "module", "string", "A drive module of the catalogue: its fields are the "
+          "defaults of the ones below.", default_text="none", source=_SIZING),
+    _sizing("drive", "rated_current", "The module's continuous current: the drive_current "
+            "check's limit.", "A", maximum=1e5),
+    _sizing("drive", "peak_current", "The module's peak current: the drive_peak_current check's "
+            "limit and, through the motor's curve, the torque clamp.", "A", maximum=1e5,
+            limits=">= rated_current"),
+    _sizing("drive", "dc_bus_voltage", "The DC link's nominal voltage: the motor's voltage limit.",
+            "V", maximum=1e5),
+    _sizing("drive", "dc_link_capacitance", "The module's DC-link capacitance: the regeneration "
+            "check.", "F", maximum=1e3),
+    _sizing("drive", "brake_chopper_voltage", "Where the brake chopper switches in.", "V",
+            maximum=1e5, limits="> dc_bus_voltage"),
+    _sizing("drive", "brake_resistor_power", "The brake resistor's continuous power; 0: none.",
+            "W", zero=True, maximum=1e8, default_text="the catalogue's, else 0 (none)"),
+    Field("mechanics", "gearhead", "string", "A gearhead of the catalogue: its fields are the "
+          "defaults of the gearhead_* ones, its ratio and efficiency those of gear_ratio and "
+          "gear_efficiency.", default_text="none", limits="gear_ratio, if given, is its ratio",
+          source=_SIZING),
+    _sizing("mechanics", "gearhead_stiffness", "C_t21 at the output: in series with the coupling "
+            "and the motor shaft.", "N m/rad", maximum=1e12),
+    _sizing("mechanics", "gearhead_input_inertia", "J1: added to the motor side.", "kg m^2",
+            zero=True, maximum=1e4),
+    _sizing("mechanics", "gearhead_idle_torque", "T012 at the input: the default of "
+            "motor_coulomb_friction.", "N m", zero=True, maximum=1e6),
+    _sizing("mechanics", "gearhead_acceleration_torque", "T2B (at most 1000 cycles/h): the "
+            "gearhead_torque check's limit.", "N m", maximum=1e8),
+    _sizing("mechanics", "gearhead_emergency_torque", "T2Not, against the drive's clamp through "
+            "the gear.", "N m", maximum=1e8),
+    _sizing("mechanics", "gearhead_max_input_speed_rpm", "n1Max: the motor_speed check's limit "
+            "where lower than the motor's.", "rpm", maximum=1e6),
+    _sizing("mechanics", "gearhead_shock_factor", "The catalogue's shock factor f_s at the duty's "
+            "cycles per hour (above 1000/h T2B is divided by it).", minimum=1.0, maximum=100.0,
+            default_text="not applied (the check says so)"),
+)
+
+
 SCENE_FIELDS: tuple[Field, ...] = (
     Field("", "name", "string", "The scene's name in reports.", default_text="the file name without "
           ".toml", source=_PARSER),
@@ -103,6 +191,8 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("", "sweep", "table", "A robustness sweep over manufacturing spread, read by `ecam sweep` "
           "(hil_sim.sweep_spec; its fields in docs/sweep.md); a run of the scene ignores it.",
           default_text="no sweep", source="hil_sim.sweep_spec"),
+    Field("", "motor", "table", "The `[motor]` table.", default_text="no motor: the sizing checks "
+          "are reported without limits"),
 
     Field("master", "speed", "number", "The cruise speed.", unit="master units/s",
           default_text="give exactly one of speed and speed_rpm", minimum=-MAX_MASTER_SPEED,
@@ -235,7 +325,8 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "planetary gearhead), none at ratio 1", minimum=0.0, maximum=EFFECT_RANGES["gear_backlash"],
           source=_EFFECTS),
     Field("mechanics", "motor_coulomb_friction", "number", "Coulomb friction on the motor side; 0: "
-          "none.", unit="N m", default_text=f"{DEFAULT_MOTOR_FRICTION_SHARE:.0%} of the motor torque "
+          "none.", unit="N m", default_text="the gearhead's catalogue idle torque T012 where the "
+          f"scene names a gearhead, else {DEFAULT_MOTOR_FRICTION_SHARE:.0%} of the motor torque "
           "limit", minimum=0.0, maximum=EFFECT_RANGES["motor_coulomb_friction"], source=_EFFECTS),
     Field("mechanics", "load_coulomb_friction", "number", "Coulomb friction on the load side; 0: "
           "none.", unit="N m", default_text=f"{DEFAULT_LOAD_FRICTION_SHARE:.0%} of the torque the "
@@ -245,6 +336,8 @@ SCENE_FIELDS: tuple[Field, ...] = (
           "0: none.", unit="kg m^2", default_text="J = 5.4e-7 T_KN^1.48 for a metal bellows of the "
           "rated torque T_KN (RINGFEDER GWB tables)", minimum=0.0,
           maximum=EFFECT_RANGES["coupling_inertia"], source=_EFFECTS),
+
+    *_SIZING_FIELDS,
 
     Field("bus", "bitrate", "integer", "The CAN bitrate: the rig adds up each cycle's frame bits "
           "(worst-case bit stuffing) against it.", unit="bit/s", default=1_000_000, minimum=10_000,
@@ -294,6 +387,9 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("limits", "sensitivity_peak", "number", "The loop_stability check: largest sensitivity "
           "peak Ms = max |1 / (1 + L)|.", default=2.0, minimum=1.0, exclusive_minimum=True,
           maximum=100.0, source="hil_sim.tuning (MarginLimits)"),
+    Field("limits", "inertia_ratio", "number", "The inertia_ratio check: largest load (reflected) "
+          "over motor-side inertia.", default_text="reported without a limit", minimum=0.0,
+          exclusive_minimum=True, source=_PARSER),
     Field("limits", "settle_s", "number", "Left out of the tracking and following-error checks at "
           "the start.", unit="s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S, source=_PARSER),
 

@@ -187,7 +187,8 @@ MOTOR_FIELDS = tuple(f.name for f in fields(MotorData) if f.name not in ("model"
 MODULE_FIELDS = tuple(f.name for f in fields(ModuleData) if f.name not in ("model", "source"))
 #: The [drive] keys of the module (besides the drive's control fields).
 DRIVE_SIZING_KEYS = ("module", *MODULE_FIELDS)
-_GEARHEAD_KEYS = {"gearhead_stiffness": "torsional_stiffness", "gearhead_input_inertia": "input_inertia",
+_GEARHEAD_KEYS = {"gearhead_stiffness": "torsional_stiffness",
+                  "gearhead_input_inertia": "input_inertia",
                   "gearhead_idle_torque": "idle_torque",
                   "gearhead_acceleration_torque": "acceleration_torque",
                   "gearhead_emergency_torque": "emergency_stop_torque",
@@ -226,7 +227,7 @@ def _entry(raw: Fields, key: str, kind: str) -> dict:
     """The catalogue entry a scene names with ``key`` ({} when it names none)."""
     if key not in raw:
         return {}
-    name = raw.string(key)
+    name = raw.text(key)
     entries = catalogue().get(kind, {})
     if name not in entries:
         raise raw.error(f"{raw.name(key)}: {show(name)} is not in the catalogue; expected one "
@@ -234,9 +235,15 @@ def _entry(raw: Fields, key: str, kind: str) -> dict:
     return dict(entries[name], model=name)
 
 
+#: Lower bounds other than 0 (inclusive): a shock factor never lowers the load.
+_MIN = {"shock_factor": 1.0}
+
+
 def _number(raw: Fields, key: str, value, name: str):
     """A field's number, checked against its range (the scene's key named in messages)."""
     probe = Fields({key: value}, raw.where, raw.source)
+    if name in _MIN:
+        return probe.number(key, minimum=_MIN[name], maximum=_MAX[name])
     return probe.number(key, minimum=0.0, maximum=_MAX[name],
                         strict=name not in _MAY_BE_ZERO)
 

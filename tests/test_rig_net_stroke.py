@@ -47,8 +47,9 @@ def test_the_shipped_knife_passes_from_standstill_over_the_bus(knife):
     at = float(tracking.detail.split("at master ")[1].split()[0])
     assert at >= 330.0 or at <= 30.0  # the worst sample lies in the cut zone
     assert report.summary["mechanics"]["gear"] == "5:1 reduction"
+    # the motor side: the rotor and the gearhead's input inertia (issue 21)
     assert report.summary["mechanics"]["inertia_ratio"] == pytest.approx(
-        (0.0674 + 0.5 * 8.7e-4) * 0.2**2 / 0.97 / 5.43e-4, rel=0.1)
+        (0.0674 + 0.5 * 8.7e-4) * 0.2**2 / 0.97 / (5.43e-4 + 0.68e-4), rel=0.1)
 
 
 @pytest.mark.slow
@@ -83,10 +84,16 @@ def test_a_drum_turning_backwards(knife):
     assert report.passed, report.to_text()
 
 
+# The approach's acceleration limit: 30000 drum deg/s^2 (it was 40000 before issue 21, when the
+# knife had no gearhead idle torque, input inertia or series spring: with them the approach at
+# 40000 touched the 15 N m clamp for a few cycles and failed motor_saturation).
+CAM_IN_ACCELERATION = 30000.0
+
+
 def _cam_in_knife(knife, cam_mode):
     master = replace(knife.master, profile="cam_in", max_acceleration=None, max_jerk=None,
                      engage_at=200.0, slave_start=0.0, max_velocity=2000.0,
-                     slave_max_acceleration=40000.0, slave_max_jerk=4e6)
+                     slave_max_acceleration=CAM_IN_ACCELERATION, slave_max_jerk=4e6)
     return replace(knife, master=master, cam_mode=cam_mode,
                    limits=replace(knife.limits, settle_s=1.0), duration=DurationSpec(seconds=3.0))
 
@@ -190,7 +197,7 @@ def test_an_infeasible_trial_is_a_failed_speed_in_the_scene_words(knife):
     its reason (the scene's field in master deg, the speed tried), not the end of the search."""
     master = replace(knife.master, profile="cam_in", max_acceleration=None, max_jerk=None,
                      engage_at=200.0, slave_start=0.0, max_velocity=2000.0,
-                     slave_max_acceleration=40000.0, slave_max_jerk=4e6)
+                     slave_max_acceleration=CAM_IN_ACCELERATION, slave_max_jerk=4e6)
     scene = replace(knife, master=master, limits=replace(knife.limits, settle_s=1.0))
     lines = []
     result = find_max_speed(scene, progress=lines.append)

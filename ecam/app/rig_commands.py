@@ -67,7 +67,8 @@ def sim_command(args: argparse.Namespace) -> int:
 
 
 #: How the text says whose limit a search's limiting check is (``limiting_kind``).
-WHOSE = {"machine": "the machine (mechanics): ", "drive": "the drive (tuning, stability, torque): ",
+WHOSE = {"machine": "the machine (mechanics, sizing): ",
+         "drive": "the drive (tuning, stability, torque): ",
          "bus": "the bus: "}
 
 

@@ -348,7 +348,8 @@ def sizing_checks(run: PreparedRun) -> tuple[list[Check], dict, dict]:
     if motor is not None:
         top = max(motor.max_speed_rpm, float(np.max(duty.speed_rpm)))
         rpm = np.linspace(0.0, top, CURVE_POINTS)
-        series.update(sizing_curve_rpm=rpm, sizing_s1_torque=sizing.s1_torque(rpm, motor.s1_points()),
+        series.update(sizing_curve_rpm=rpm,
+                      sizing_s1_torque=sizing.s1_torque(rpm, motor.s1_points()),
                       sizing_peak_torque=available_torque(run, rpm * sizing.RPM))
     return checks, summary, series
 

@@ -25,13 +25,15 @@ def test_the_json_and_the_text_carry_the_tuning(knife):
     data = json.loads(knife.to_json())
     tuning = data["tuning"]
     assert tuning["source"] == "auto" and tuning["meets_limits"]
-    assert tuning["notch_hz"] and tuning["notch_hz"][0] == pytest.approx(579.1, rel=1e-3)
+    # the knife's torsional mode with its gearhead and motor shaft in series with the bellows
+    # (issue 21: 228 Hz undamped, the coupling's inertia on the load side; 579 Hz without them)
+    assert tuning["notch_hz"] and tuning["notch_hz"][0] == pytest.approx(225.6, rel=1e-3)
     for key in ("velocity_kp", "velocity_ki", "position_kp", "velocity_bandwidth_hz",
                 "position_bandwidth_hz", "phase_margin_deg", "gain_margin_db",
                 "sensitivity_peak"):
         assert isinstance(tuning[key], float)
     text = knife.to_text()
-    assert "tuning (auto): velocity loop " in text and "notch 579.1 Hz" in text
+    assert "tuning (auto): velocity loop " in text and "notch 225.6 Hz" in text
     assert "loop_stability: " in text
 
 

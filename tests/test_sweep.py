@@ -211,9 +211,8 @@ def test_nominal_tuning_ships_the_nominal_gains_and_a_bad_sample_is_one_line(tmp
         "'mechanics.gear_efficiency' = { distribution = 'uniform', low = 0.9, high = 1.1 }\n"))
     plan = plan_sweep(path)
     nominal = hil_sim.run_scene(load_scene(path).with_fidelity("full"), path="fast").to_dict()
-    if "tuning" in nominal:  # the commissioning's gains, pinned in every sample
-        for key in ("position_kp", "velocity_kp", "velocity_ki"):
-            assert plan.gains[key] == nominal["tuning"][key]
+    for key in ("position_kp", "velocity_kp", "velocity_ki"):  # the commissioning's gains, pinned
+        assert plan.gains[key] == nominal["tuning"][key]
     assert plan.task(0, 0)["data"]["drive"]["gains"] == plan.gains
     results = {(i, 0): {**run_sample(plan.task(i, 0)), "values": plan.design.sample(i)}
                for i in range(4)}
@@ -226,8 +225,7 @@ def test_nominal_tuning_ships_the_nominal_gains_and_a_bad_sample_is_one_line(tmp
     summary = summarize(plan, results)
     assert summary["errors"] == len(bad) and summary["passed"] <= 4 - len(bad)
     assert [e["index"] for e in summary["error_samples"]] == bad
-    if "tuning" in nominal:
-        assert all(results[(i, 0)]["tuning"]["source"] == "scene" for i in range(4) if i not in bad)
+    assert all(results[(i, 0)]["tuning"]["source"] == "scene" for i in range(4) if i not in bad)
 
 
 @pytest.mark.slow

@@ -31,7 +31,7 @@ import numpy as np
 
 from ecam.atomic_files import write_files
 from ecam.camfile import read_toml
-from ecam.errors import EcamError, InputError
+from ecam.errors import EcamError, InputError, SimulationError
 from ecam.sampling import Design, design
 from ecam.statistics import max_speed_at_yield, proportion, rank_sensitivity, sobol_sensitivity
 from ecam.validate import integer
@@ -135,20 +135,22 @@ def _with_samples(spec: SweepSpec, samples: int) -> SweepSpec:
 
 def nominal_gains(scene: Scene) -> dict:
     """The nominal machine's tuning, as the [drive.gains] that pin it in every sample: the
-    report's ``tuning`` object where the rig reports one (commissioning), else the gains the
-    rig derives from the nominal mechanics."""
+    gains of the report's ``tuning`` object (the rig's commissioning of the nominal scene).
+
+    Raises
+    ------
+    SimulationError
+        The rig's report has no ``tuning`` object with those gains.
+    """
     from hil_sim.rig import run_scene
 
     tuning = run_scene(scene, path="fast").to_dict().get("tuning")
-    if isinstance(tuning, dict) and all(k in tuning for k in PINNED_GAINS[:3]):
-        gains = {k: tuning[k] for k in PINNED_GAINS if tuning.get(k) is not None}
-    else:
-        from hil_sim.rig.run import prepare
-
-        prepared, _ = prepare(scene)
-        gains = {k: getattr(prepared.gains, k) for k in PINNED_GAINS}
+    if not (isinstance(tuning, dict) and all(k in tuning for k in PINNED_GAINS[:3])):
+        raise SimulationError("sweep.tuning: 'nominal' needs the report's tuning object "
+                              f"({', '.join(PINNED_GAINS[:3])}), which this rig does not give")
+    gains = {k: tuning[k] for k in PINNED_GAINS if tuning.get(k) is not None}
     notch = gains.get("notch_hz")
-    if isinstance(notch, (list, tuple)):  # a tuner may report several notches
+    if isinstance(notch, (list, tuple)):  # the tuner reports its notches as a list
         gains["notch_hz"] = notch[0] if len(notch) == 1 else (0.0 if not notch else list(notch))
     return {k: float(v) if isinstance(v, (int, float)) else v for k, v in gains.items()}
 
@@ -189,26 +191,41 @@ def read_results(file: Path, plan: SweepPlan) -> dict:
 
 class _ResultsLog:
     """Appends one JSON line per result and flushes it, so an interruption loses at most the
-    line being written."""
+    line being written. The directory is made (and so checked) at once; the file is opened
+    with the first result, so a sweep that never started (a scheduler that cannot be reached)
+    leaves no results file behind."""
 
     def __init__(self, file: Path, plan: SweepPlan, fresh: bool) -> None:
+        self._file, self._plan, self._fresh, self._handle = file, plan, fresh, None
         try:
             file.parent.mkdir(parents=True, exist_ok=True)
-            self._handle = open(file, "w" if fresh else "a", encoding="utf-8")
         except OSError as exc:
-            raise InputError(f"-o: {str(file.parent)!r} cannot be written: "
+            raise InputError(f"-o: {str(file.parent)!r} cannot be made: "
                              f"{exc.strerror or exc}") from None
-        if fresh:
-            self.write(_header(plan))
-        elif file.stat().st_size and not file.read_bytes().endswith(b"\n"):
-            self._handle.write("\n")  # a line cut by the interruption stays a line of its own
 
-    def write(self, row: dict) -> None:
+    def _open(self) -> None:
+        file = self._file
+        try:
+            self._handle = open(file, "w" if self._fresh else "a", encoding="utf-8")
+            if self._fresh:
+                self._line(_header(self._plan))
+            elif file.stat().st_size and not file.read_bytes().endswith(b"\n"):
+                self._handle.write("\n")  # a line cut by the interruption stays a line of its own
+        except OSError as exc:
+            raise InputError(f"-o: {str(file)!r} cannot be written: {exc.strerror or exc}") from None
+
+    def _line(self, row: dict) -> None:
         self._handle.write(json.dumps(row, sort_keys=True, allow_nan=False) + "\n")
         self._handle.flush()
 
+    def write(self, row: dict) -> None:
+        if self._handle is None:
+            self._open()
+        self._line(row)
+
     def close(self) -> None:
-        self._handle.close()
+        if self._handle is not None:
+            self._handle.close()
 
 
 def result_rows(directory) -> list[dict]:

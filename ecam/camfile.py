@@ -277,7 +277,7 @@ def _spline(r: Fields, master: float, slave: float) -> Segment:
         law = spline_law(r.get("knots"), r.get("derivatives"))
     with r.calling(_file_name_in(r)):
         return Segment(master_start, master_start + law.span, slave_start, slave_start + law.end_position, law,
-                       r.string("name", default=""))
+                       r.text("name", default=""))
 
 
 def _combination(r: Fields, placement) -> tuple[Segment, Segment]:
@@ -344,7 +344,7 @@ def _tappets(top: Fields) -> tuple:
         if "direction" in r:
             values["direction"] = r.choice("direction", DIRECTIONS)
         with r.calling():
-            out.append(TappetTrack(**values, name=r.string("name", default="")))
+            out.append(TappetTrack(**values, name=r.text("name", default="")))
     return tuple(out)
 
 

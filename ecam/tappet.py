@@ -83,7 +83,7 @@ class TappetTrack:
             object.__setattr__(self, field, validate.number(field, _plain(getattr(self, field)),
                                                             minimum=-MAX_COMPENSATION_S,
                                                             maximum=MAX_COMPENSATION_S))
-        validate.string("name", self.name)
+        validate.text("name", self.name)  # goes into exports and plots (issue 28)
 
     def within(self, master_period: float) -> "TappetTrack":
         """The track, checked against a cam's master period: on, off in [0, period], hysteresis

@@ -350,6 +350,8 @@ def test_hostile_names_and_units(workdir, data):
     for segment in document["segment"]:
         if data.draw(st.booleans(), label="segment name"):
             segment["name"] = data.draw(TEXTS, label="segment name")
+    if data.draw(st.booleans(), label="tappet"):  # a switch track's name goes into the CODESYS header
+        document["tappet"] = [{"name": data.draw(TEXTS, label="tappet name"), "on": 0.1, "off": 0.4}]
     text = to_toml(document)
     path = workdir / "names.toml"
     path.write_text(text, encoding="utf-8")

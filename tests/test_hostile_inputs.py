@@ -206,7 +206,9 @@ def test_comment_terminators_in_names_and_units_stay_inside_the_comments(tmp_pat
     st = tmp_path / "cam.st"
     status, *_ = run("export", cam, "--to", "codesys", "-o", st)
     assert status == 0
-    code = iec_code(st.read_text())
+    written = st.read_text()
+    assert "\\n" not in written and written.splitlines()[2].startswith("   Between two points")  # lines kept
+    code = iec_code(written)
     assert "injected : INT" not in code and code.count("VAR_GLOBAL") == 1 and code.count("END_VAR") == 1
     csv = tmp_path / "cam.csv"
     status, *_ = run("export", cam, "--to", "csv", "--interp", "cubic", "-o", csv)

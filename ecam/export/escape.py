@@ -20,9 +20,10 @@ def iec_comment(text: str) -> str:
     ``(*`` and ``*)`` or by ``/*`` and ``*/``, and comments of the same kind may nest, so both the
     closing and the opening delimiters of both kinds are broken up: a space goes between every
     ``*`` and a ``(`` or ``/`` before it and a ``)`` or ``/`` after it (``*)`` -> ``* )``,
-    ``(*`` -> ``( *``). ``//`` starts a comment only outside one and needs nothing.
+    ``(*`` -> ``( *``). ``//`` starts a comment only outside one and needs nothing. Line ends
+    stay (the comment spans lines); other control characters are escaped.
     """
-    chars = _printable(text)
+    chars = _printable(text, keep="\n")  # a (* *) comment spans lines: only its delimiters matter
     out = []
     for index, char in enumerate(chars):
         if char == "*":
@@ -52,8 +53,8 @@ def csv_field(text: str) -> str:
     return text
 
 
-def _printable(text: str) -> list[str]:
+def _printable(text: str, keep: str = "") -> list[str]:
     """The characters of ``text``, each line break or other control character (Unicode Cc, Zl,
-    Zp) replaced by its Python escape (``\\n``, ``\\x00``, ``\\u2028``)."""
-    return [ascii(char)[1:-1] if unicodedata.category(char) in ("Cc", "Zl", "Zp") else char
-            for char in text]
+    Zp) but those in ``keep`` replaced by its Python escape (``\\n``, ``\\x00``, ``\\u2028``)."""
+    return [ascii(char)[1:-1] if unicodedata.category(char) in ("Cc", "Zl", "Zp") and char not in keep
+            else char for char in text]

@@ -75,7 +75,7 @@ CAM_FIELDS: tuple[Field, ...] = (
           "kind and point count that meet the tolerance with the fewest bytes (auto).",
           default=DEFAULT_INTERP, choices=INTERPOLATIONS, source=_SPEC),
     Field("table", "points", "integer", "Stored points (intervals + 1).",
-          default_text="from the tolerance; with neither, the smallest table within 1/2 count",
+          default_text="none: give points or tolerance (here, or --points / --tolerance)",
           minimum=2, maximum=MAX_POINTS, limits="points - 1 divides master_counts; at most one of "
           "points and tolerance", source=_SPEC),
     Field("table", "tolerance", "number or string", "The largest error the table may have: slave "

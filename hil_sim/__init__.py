@@ -1,7 +1,7 @@
 """hil_sim: the software-in-the-loop rig -- a virtual CANopen CiA 402 servo with motor, gear,
 coupling and load, driven by a master-axis loop over python-can's virtual bus.
 
-The rig in four calls (see the README's "Python API")::
+The rig in four calls (see the documentation's "Python API" page)::
 
     scene = hil_sim.load_scene(hil_sim.SCENES_DIR / "stiff_coupling.toml", cam=profile)
     report = hil_sim.run_scene(scene)          # a Report: passed, checks, summary, series
@@ -46,3 +46,8 @@ def __getattr__(name):
     value = getattr(importlib.import_module(module), attribute)
     globals()[name] = value
     return value
+
+
+def __dir__():
+    # The lazy names too: dir(hil_sim) and tab completion show the rig's API, not only Path.
+    return sorted({*globals(), *_LAZY})

@@ -231,6 +231,14 @@ class Report:
         if "gear" in mechanics:
             lines.append(f"machine: {mechanics['gear']}, load/motor inertia ratio "
                          f"{mechanics['inertia_ratio']:.3g}")
+        master = self.summary.get("master", {})
+        if master.get("periods") is not None and master.get("speed") is not None:
+            # the master's travel, which a start ramp or a cam-in's approach leaves short of
+            # the periods at cruise speed that a duration in master_periods asks for
+            lines.append(f"master: {master.get('profile')}, cruise {master['speed']:.6g} "
+                         f"{master.get('speed_unit', '')}, travelled {master['periods']:.3g} periods"
+                         + ("" if master.get("profile") == "constant" else
+                            " (the start or the cam-in took part of the run's time)"))
         lines += self._effect_lines()
         if self.summary.get("tuning"):
             lines.append(_tuning_line(self.summary["tuning"]))

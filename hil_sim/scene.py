@@ -101,6 +101,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from ecam.camfile import CAMS_DIR, load_cam, read_toml
+from ecam.errors import CamFileError
 from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
@@ -427,6 +428,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     """
     if cam is not None and not isinstance(cam, CamProfile):
         raise fail("cam", cam, "an ecam.CamProfile")
+    if isinstance(data, dict) and "master" not in data and ("master_period" in data or "segment" in data):
+        # A cam file where a scene belongs: say so, not "master_period: unknown field".
+        raise CamFileError(f"scene {source}: this is a cam file (it has master_period and "
+                           "[[segment]]), not a scene: a scene names its cam in [cam] file = ...; "
+                           "`ecam check` and `ecam compile` take cam files")
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
                                               "limits", "duration", "sweep",

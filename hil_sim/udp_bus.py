@@ -71,7 +71,13 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
     """
 
     def __init__(self, channel: str = DEFAULT_GROUP, *args, **kwargs) -> None:
-        super().__init__(channel, *args, **kwargs)
+        try:
+            super().__init__(channel, *args, **kwargs)
+        except BaseException:
+            # Half built, nothing to shut down: without this python-can's __del__ logs a stray
+            # "was not properly shut down" under the caller's one-line error.
+            self._is_shutdown = True
+            raise
         # fileno() is python-can's public handle on the socket; fromfd duplicates it, and an
         # option set on the duplicate is set on the one socket both name.
         with socket.fromfd(self.fileno(), socket.AF_INET, socket.SOCK_DGRAM) as sock:

@@ -233,7 +233,7 @@ def test_summary_table_and_exit_status(results):
     assert rows[3].endswith(", ".join(f"{c.name} x{c.ratio:.3g}" if c.ratio is not None
                                       else c.name for c in soft.failed))
     nearest = max((c for c in stiff.checks if c.ratio is not None), key=lambda c: c.ratio)
-    assert rows[2].endswith(f"{nearest.name} {100 * nearest.ratio:.3g} %")
+    assert rows[2].endswith(f"{nearest.name} at {100 * nearest.ratio:.3g} % of its limit")
     assert rows[-1] == "1 of 2 scenes passed"
     assert exit_status(results) == 1
     assert exit_status(results[:1]) == 0

@@ -70,3 +70,10 @@ def test_the_report_carries_the_motor_torque_the_page_plots():
     assert len(torque) == len(report.series["time_s"]) == report.cycles
     assert float(np.max(torque)) == report.summary["mechanics"]["peak_motor_torque"]
     assert float(np.max(torque)) <= report.summary["mechanics"]["motor_torque_limit"]
+
+
+def test_the_demo_says_its_failing_scene_fails_on_purpose(demo):
+    out, run = demo
+    assert "-- soft_coupling: a soft coupling at 150 rpm: this scene FAILS ON PURPOSE" in run.stdout
+    assert ("ecam demo: done (stiff_coupling passed, soft_coupling failed, as intended: the soft coupling "
+            "fails on purpose)") in run.stdout

@@ -15,6 +15,7 @@ from ecam.export import EXPORTERS, identifier, json_safe
 from ecam.laws import LAWS
 from ecam.plot import plot_profile
 
+from .compile_notes import defaults_applied, defaults_text, joint_hint
 from .progress import progress_bar
 
 
@@ -189,10 +190,15 @@ def cmd_compile(args) -> int:
     files = write_table(table, name, Path(args.output), formats, inputs=[args.cam])
     summary = table_summary(table, files)
     summary["manifest"] = str(manifest_path(name, Path(args.output)))
+    applied = defaults_applied(profile, args)
     if args.json:
+        summary["defaults_applied"] = applied
         print(json.dumps(summary, indent=1))
     else:
         print(certificate_text(name, table))
+        for note in (joint_hint(profile, table), defaults_text(applied)):
+            if note:
+                print(note)
         for path in files:
             print(f"  wrote {path}")
         print(f"  wrote {summary['manifest']} (the group's manifest, written last)")

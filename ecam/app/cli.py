@@ -91,10 +91,12 @@ def _sweep(args) -> int:
     return sweep_command(args)
 
 
-def add_sim_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of the ``sim`` command."""
-    parser.add_argument("scene", nargs="+",
-                        help="scene file(s) (TOML) or directories of them, see hil_sim/scenes/")
+def add_sim_arguments(parser: argparse.ArgumentParser, several: bool = True) -> None:
+    """Options of the ``sim`` command (``several``: it takes several scenes and directories)."""
+    parser.add_argument("scene", nargs="+" if several else 1,
+                        help="scene files (TOML) or directories of them, see hil_sim/scenes/; "
+                             "--json, --plot and --find-max-speed take one scene file" if several
+                        else "one scene file (TOML), see hil_sim/scenes/")
     parser.add_argument("--json", action="store_true",
                         help="print the report as JSON (deterministic: same scene, same bytes)")
     parser.add_argument("--timing", action="store_true",
@@ -140,6 +142,58 @@ def add_join_arguments(parser: argparse.ArgumentParser) -> None:
                              "SlaveAbsolute (default: absolute)")
 
 
+# What each command's --help says above its options, and its exit status below them.
+DESCRIPTIONS = {
+    "laws": ("The normalized motion laws s(u), u in [0, 1], with their characteristic values Cv, Ca, "
+             "Cj: the peaks of the first, second and third derivatives (inf where a lower derivative "
+             "jumps).", "0 listed"),
+    "check": ("Every jump of position, velocity and acceleration (errors) and jerk (warnings) of a "
+              "cam file, at joints, inside laws and at the seam, with the stroke and the peaks.",
+              "0 continuous, 1 a position, velocity or acceleration jump"),
+    "plot": ("The motion diagram of a cam file: position, velocity, acceleration and jerk against "
+             "the master position, joints dashed, jumps marked.", "0 written"),
+    "compile": ("A cam file compiled into a fixed-point table whose error is certified against the "
+                "exact cam at every master count; the cam's [table] gives what the options leave out, "
+                "and the output says which of ecam's defaults it applied.", "0 written"),
+    "export": ("A cam file as the table a vendor's controller reads, with the fewest points that "
+               "meet the tolerance under that controller's own interpolation, and its certificate.",
+               "0 written"),
+    "demo": ("The main job on the built-in seed cams: checked, plotted, compiled, and run on the rig "
+             "on a stiff coupling (passes) and a soft one (fails on purpose, to show a failing "
+             "check).", "0 the demo ran (its failing scene is part of it)"),
+    "bench": ("Speed against error of the table kinds (Python and C lookups against numpy and scipy) "
+              "and the rig's speed.", "0 measured"),
+    "sim": ("Run scenes on the software-in-the-loop rig: a master streaming over CANopen to a "
+            "virtual CiA 402 drive on the scene's mechanics, every check with its limit. One scene "
+            "prints its report (--json, --plot, --find-max-speed); several, or directories, print a "
+            "progress line each and a summary table. --junit and --html write reports for either.",
+            "0 every scene passed, 1 a check failed, 2 a scene could not run"),
+    "firmware": ("The C reference runtime (ecam_table.c, ecam_table.h) and the table format it "
+                 "implements (FORMAT.md), written from the installed package.", "0 written"),
+    "drive": ("A virtual CiA 402 drive as a CANopen node for a master in another process (python "
+              "canopen, a soft PLC, CANopenNode), until Ctrl-C or SIGTERM.",
+              "0 stopped, 2 the bus could not be opened"),
+}
+
+
+def _document(parser: argparse.ArgumentParser) -> None:
+    """Every subcommand's description and exit status, and every option's default in its help
+    (a command added without a description shows its one-line help)."""
+    for action in parser._actions:
+        if not isinstance(action, argparse._SubParsersAction):
+            continue
+        helps = {choice.dest: choice.help for choice in action._choices_actions}
+        for name, sub in action.choices.items():
+            description, exits = DESCRIPTIONS.get(name, (helps.get(name) or "", "0 done"))
+            sub.description = sub.description or description
+            sub.epilog = sub.epilog or f"Exit status: {exits}, 2 bad input (one line on stderr)."
+            for option in sub._actions:
+                default = option.default
+                if (option.option_strings and option.help and default not in (None, False, argparse.SUPPRESS)
+                        and str(default) not in option.help):
+                    option.help += f" (default: {default})"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="ecam", description="Electronic cams: motion laws, certified cam tables, a CANopen rig.",
                      epilog="Exit status: 0 success, 1 a check failed, 2 bad input (one line on stderr). "
@@ -154,7 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("check", help="report every jump of position, velocity, acceleration (and jerk)")
     p.add_argument("cam", help="cam file (TOML)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="every jump as JSON, none left out")
     p.add_argument("--speed", metavar="SPEED",
                    help="also give the peaks at this master speed: master units per second, or e.g. "
                         "'720 deg/s', '120 periods/min', '120 rpm'")
@@ -164,30 +218,33 @@ def build_parser() -> argparse.ArgumentParser:
     add_transition_parser(sub)
 
     p = sub.add_parser("plot", help="motion diagram: position, velocity, acceleration, jerk")
-    p.add_argument("cam")
+    p.add_argument("cam", help="cam file (TOML)")
     p.add_argument("-o", "--output", required=True, help="image file (.png, .svg, .pdf)")
     p.set_defaults(func=cam_commands.cmd_plot)
 
     p = sub.add_parser("compile", help="compile a cam into a certified fixed-point table")
-    p.add_argument("cam")
-    p.add_argument("--interp", choices=INTERPOLATIONS)
+    p.add_argument("cam", help="cam file (TOML)")
+    p.add_argument("--interp", choices=INTERPOLATIONS,
+                   help="interpolation kind (default: the cam's [table] interp, else cubic)")
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--points", type=int, help="stored points (intervals + 1)")
-    group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts'")
-    p.add_argument("--master-counts", type=int, help="master period in counts")
-    p.add_argument("--slave-counts-per-unit", type=float, help="slave counts per slave unit")
+    group.add_argument("--points", type=int, help="stored points (intervals + 1) (default: the cam's [table])")
+    group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts' (default: the cam's [table])")
+    p.add_argument("--master-counts", type=int,
+                   help="master period in counts (default: the cam's [table], else 65536)")
+    p.add_argument("--slave-counts-per-unit", type=float,
+                   help="slave counts per slave unit (default: the cam's [table], else 1000)")
     p.add_argument("--horner-bits", type=int, choices=(64, 32),
                    help="32: a format whose expanded form (ecam_poly_init) runs in 32-bit words on 32-bit "
                         "cores, at a certified cost in precision (default: 64; docs/table_formats.md)")
     p.add_argument("-o", "--output", default=".", help="output directory (default: .)")
     p.add_argument("--format", default="c,bin", help="comma list of c, bin, csv, json (default: c,bin)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="the table's summary and certificate as JSON")
     p.set_defaults(func=cam_commands.cmd_compile)
 
     p = sub.add_parser("export", help="a cam table for your controller, certified under its own interpolation")
     p.add_argument("cam", help="cam file (TOML)")
-    p.add_argument("--to", required=True, metavar="FORMAT",
-                   help="codesys, twincat-cnc, kollmorgen, elmo, technosoft or csv")
+    p.add_argument("--to", required=True, metavar="FORMAT", type=str.lower,
+                   help="codesys, twincat-cnc, kollmorgen, elmo, technosoft or csv (any case)")
     p.add_argument("--interp", help="twincat-cnc: linear (default) or cubic; csv: linear (default), cubic or "
                                     "quintic")
     group = p.add_mutually_exclusive_group()
@@ -197,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--master-counts", type=int, help="master period in counts (Elmo, Technosoft; reports)")
     p.add_argument("--slave-counts-per-unit", type=float, help="slave counts per slave unit (reports in counts)")
     p.add_argument("-o", "--output", help="file to write (default: NAME.FORMAT.EXT here)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="the export's summary and certificate as JSON")
     p.set_defaults(func=_export)
 
     add_fit_command(sub)
@@ -208,7 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_demo)
 
     p = sub.add_parser("bench", help="speed against error of the table kinds and the rig")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="the rows as JSON")
     p.add_argument("--plot", help="Pareto plot file (.png)")
     p.add_argument("--quick", action="store_true", help="a few seconds, for smoke tests")
     p.set_defaults(func=_bench)
@@ -234,6 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("drive", help="run a virtual CiA 402 drive until interrupted")
     add_drive_arguments(p)
     p.set_defaults(func=_drive)
+    _document(parser)
     return parser
 
 
@@ -270,8 +328,10 @@ def build_hil_sim_parser() -> argparse.ArgumentParser:
         "Software-in-the-loop rig for ecam: a CANopen master, a virtual CiA 402 drive and the "
         "mechanics, in lock-step over a python-can virtual bus."))
     commands = parser.add_subparsers(dest="command", required=True)
-    sim = commands.add_parser("sim", help="run a scene and report tracking, torque and bus checks")
-    add_sim_arguments(sim)
+    sim = commands.add_parser("sim", help="run a scene and report tracking, torque and bus checks",
+                              description="Run one scene on the rig, as `ecam sim SCENE` does.",
+                              epilog="Exit status: 0 passed, 1 a check failed, 2 bad input.")
+    add_sim_arguments(sim, several=False)
     sim.set_defaults(func=_hil_sim)
     drive = commands.add_parser("drive", help="run a virtual drive for an external CANopen master until Ctrl-C")
     add_drive_arguments(drive)

@@ -13,10 +13,12 @@ for every program; the drive keeps that, so in a script stop it with SIGTERM (`k
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import threading
 import time
 
+from ecam import validate
 from ecam.errors import EcamError
 
 # The CAN stack and the drive are imported in the functions that run the drive: the command line
@@ -31,6 +33,8 @@ from ecam.errors import EcamError
 DEFAULT_CHANNELS = {"udp_multicast": None, "ecam_udp": None, "socketcan": "vcan0", "virtual": "ecam"}
 #: The transports `ecam drive --interface` takes.
 INTERFACES = tuple(DEFAULT_CHANNELS)
+# What a multicast socket fails with when no interface reaches the group.
+_NO_ROUTE = (errno.ENODEV, errno.ENETUNREACH)
 
 #: What a master needs to reach the drive, by transport (printed when the drive starts).
 _REACH = {
@@ -74,6 +78,13 @@ def open_drive_bus(interface: str, channel: str | None):
             return EchoFreeUdpMulticastBus(channel=channel), channel
         return can.Bus(interface=interface, channel=channel), channel
     except (can.CanError, OSError, ValueError, ImportError) as exc:
+        cause = exc.__cause__ or exc.__context__ or exc
+        if interface in ("udp_multicast", "ecam_udp") and getattr(cause, "errno", None) in _NO_ROUTE:
+            # ENODEV/ENETUNREACH: the kernel has no interface to send the group to (a network
+            # namespace with only loopback, a machine without a default route).
+            raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: no route to "
+                            f"the multicast group ({cause.strerror}); add one, as root: ip route add "
+                            "224.0.0.0/4 dev lo (this machine only) or dev <your LAN interface>") from None
         raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: {exc}") from None
 
 
@@ -103,6 +114,8 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     from hil_sim.drive import VirtualDrive
     from hil_sim.rig import drive_for_scene
 
+    if args.node_id is not None:  # before the bus opens: a wrong id is bad input, not a bus error
+        validate.integer("--node-id", args.node_id, minimum=1, maximum=127)
     bus, channel = open_drive_bus(args.interface, args.channel)
     try:
         if args.scene is not None:

@@ -168,7 +168,8 @@ def _checks_table(report) -> str:
         # Fields a newer report adds to a check (a window, a location) are shown as they come.
         extra = {k: v for k, v in check.to_dict().items() if k not in _STANDARD_CHECK_KEYS}
         where = _e(check.detail) + "".join(
-            f'<br><span class="note">{_e(str(k).replace("_", " "))}: {_e(_flat(v))}</span>'
+            f'<br><span class="note">{_e(str(k).replace("_", " "))}: '
+            f'{_e(_window(v) if k == "window" and isinstance(v, dict) else _flat(v))}</span>'
             for k, v in extra.items() if v not in (None, "", [], {}))
         rows.append(
             f'<tr class="{state}">'
@@ -181,6 +182,19 @@ def _checks_table(report) -> str:
     return ('<table class="checks"><thead><tr><th></th><th>check</th><th class="num">value</th>'
             '<th class="num">limit</th><th>margin</th><th>where / how</th></tr></thead><tbody>'
             + "".join(rows) + "</tbody></table>")
+
+
+def _window(window: dict) -> str:
+    """A check's window as the text report says it: ``after 1 s and master 330..30``."""
+    words, other = [], {}
+    for key, value in window.items():
+        if key == "after_s":
+            words.append(f"after {_num(value)} s")
+        elif key == "master" and isinstance(value, (list, tuple)) and len(value) == 2:
+            words.append(f"master {_num(value[0])}..{_num(value[1])}")
+        else:
+            other[key] = value
+    return " and ".join(words + ([_flat(other)] if other else []))
 
 
 def _flat(value) -> str:

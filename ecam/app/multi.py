@@ -253,7 +253,8 @@ def summary_table(results) -> str:
             text = ", ".join(_failure(c) for c in outcome.failed)
         else:
             worst = _worst(outcome)
-            text = "-" if worst is None else f"{worst.name} {100.0 * worst.ratio:.3g} %"
+            # the share of its limit the check uses (not its margin, which the text report gives)
+            text = "-" if worst is None else f"{worst.name} at {100.0 * worst.ratio:.3g} % of its limit"
         rows.append((label, "PASS" if outcome.passed else "FAIL", outcome.model,
                      str(outcome.cycles), f"{seconds:.2f} s", text))
     widths = [max(len(row[i]) for row in rows + [header]) for i in range(len(header))]

@@ -7,6 +7,7 @@ import argparse
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 from ecam.atomic_files import check_outputs, write_files
@@ -26,10 +27,36 @@ def run_sim(args: argparse.Namespace) -> int:
     # `ecam: error:` line, not a batch of one ERROR row)
     # os.path.isdir never raises (Path.is_dir does, on a name longer than NAME_MAX)
     single = len(args.scene) == 1 and not os.path.isdir(args.scene[0])
-    if single and not (args.junit or args.html or args.jobs != 1):
+    if single:  # its report, JSON, plot and search, and JUnit XML or HTML as well when asked
         args.scene = args.scene[0]
         return sim_command(args)
     return sim_many(args)
+
+
+def _check_outputs(args, inputs) -> None:
+    """Refuse a --junit or --html file whose directory does not exist, or that is one of the
+    ``inputs`` (a scene or its cam), before anything runs."""
+    outputs = [option for option in (getattr(args, "junit", None), getattr(args, "html", None))
+               if option is not None]
+    for option in outputs:  # os.path never raises (Path.resolve does on a symbolic link loop)
+        if not os.path.isdir(os.path.dirname(os.path.abspath(option))):
+            raise InputError(f"output {option!r}: its directory does not exist")
+    check_outputs(outputs, inputs)
+
+
+def _write_reports(args, results, stream, inputs=()) -> None:
+    """Write the --junit and --html files of ``results``; say where, on ``stream``."""
+    outputs = {}
+    if getattr(args, "junit", None):
+        outputs[Path(args.junit)] = junit_xml(results)
+    if getattr(args, "html", None):
+        outputs[Path(args.html)] = html_report(results, timing=getattr(args, "timing", False))
+    try:
+        write_files(outputs, inputs)
+    except OSError as exc:
+        raise InputError(f"report files cannot be written: {exc.strerror or exc}") from None
+    for path in outputs:
+        print(f"wrote {path}", file=stream)
 
 
 def sim_command(args: argparse.Namespace) -> int:
@@ -43,11 +70,15 @@ def sim_command(args: argparse.Namespace) -> int:
     if not str(path):
         raise InputError("scene '': should be a path (an empty argument names no file)")
     scene = load_scene(path)
-    if args.plot:  # before the run: never over the scene or its cam
-        check_outputs([args.plot], [path] + ([scene.cam.file] if scene.cam.file else []))
+    inputs = [path] + ([scene.cam.file] if scene.cam.file else [])
+    _check_outputs(args, inputs)  # before the run: never over the scene or its cam
+    if args.plot:
+        check_outputs([args.plot], inputs)
     if getattr(args, "fidelity", None):
         scene = scene.with_fidelity(args.fidelity)
+    start = time.perf_counter()
     report = run_scene(scene, plot=args.plot)
+    seconds = time.perf_counter() - start
     search = None
     if args.find_max_speed:
         search = find_max_speed(scene, progress=lambda line: print(line, file=sys.stderr,
@@ -63,6 +94,9 @@ def sim_command(args: argparse.Namespace) -> int:
             sys.stdout.write(format_search(search))
         if args.plot:
             print(f"plots: {args.plot}, {bode_path(args.plot)} (the open loops)")
+    if getattr(args, "junit", None) or getattr(args, "html", None):
+        _write_reports(args, [(Path(path), report, seconds)], sys.stderr if args.json else sys.stdout,
+                       inputs)
     return 0 if report.passed else 1
 
 
@@ -99,27 +133,18 @@ def format_search(search: dict) -> str:
 def sim_many(args) -> int:
     """Several scenes: a progress line each, a summary table, JUnit XML and HTML on request.
     ``--fidelity`` applies to every scene; ``--timing`` adds the wall times to the HTML page."""
-    if args.json or args.plot or args.find_max_speed:
-        raise InputError("--json, --plot and --find-max-speed take one scene file; "
-                         f"{len(args.scene)} scene argument(s) given")
-    outputs = [option for option in (args.junit, args.html) if option is not None]
-    for option in outputs:  # os.path never raises (Path.resolve does on a symbolic link loop)
-        if not os.path.isdir(os.path.dirname(os.path.abspath(option))):
-            raise InputError(f"output {option!r}: its directory does not exist")
-    check_outputs(outputs, scene_inputs(args.scene))
+    given = [option for option, on in (("--json", args.json), ("--plot", args.plot),
+                                        ("--find-max-speed", args.find_max_speed)) if on]
+    if given:
+        what = f"{len(args.scene)} scene arguments" if len(args.scene) > 1 else "a directory"
+        raise InputError(f"{', '.join(given)}: one scene file only, {what} given (several scenes "
+                         "take --jobs, --junit, --html, --fidelity and --timing)")
+    _check_outputs(args, scene_inputs(args.scene))
     results = run_scenes(args.scene, args.jobs,
                          progress=lambda line: print(line, file=sys.stderr),
                          fidelity=getattr(args, "fidelity", None))
     print(summary_table(results))
-    outputs = {}
-    if args.junit:
-        outputs[Path(args.junit)] = junit_xml(results)
-    if args.html:
-        outputs[Path(args.html)] = html_report(results, timing=getattr(args, "timing", False))
-    try:
-        write_files(outputs, scene_inputs(args.scene))
-    except OSError as exc:
-        raise InputError(f"report files cannot be written: {exc.strerror or exc}") from None
+    _write_reports(args, results, sys.stdout, scene_inputs(args.scene))
     return exit_status(results)
 
 

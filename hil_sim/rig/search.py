@@ -143,7 +143,8 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
         low, high = None, min((abs(r["speed"]) for r in runs), default=abs(start))
         if progress is not None:
             progress(f"search stops: {exc}")
-    resolution, why = tolerance * (low or 0.0), f"the requested tolerance {tolerance:g}"
+    resolution = tolerance * (low or 0.0)
+    why = f"the search's tolerance, {100 * tolerance:.3g} % of the passing speed"
     measured = False
     while low is not None and high is not None and len(runs) < max_runs:
         if not measured and high - low <= _NOISE_BRACKET * low:
@@ -166,8 +167,9 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
         low, high, flipped = _monotone(runs, low, high)
         if tolerance * low > resolution:  # relative: of the speed found, not of a first bracket
             resolution = tolerance * low
-            if not why.startswith("the requested tolerance"):
-                why = f"the requested tolerance {tolerance:g}, coarser than {why}"
+            if not why.startswith("the search's tolerance"):
+                why = (f"the search's tolerance, {100 * tolerance:.3g} % of the passing speed, "
+                       f"coarser than {why}")
         if flipped is not None and flipped[0] > resolution:
             resolution, why = flipped
     confirmed = False

@@ -15,7 +15,8 @@ certificate = table.certificate
 print(f"{table.format.interp} table, {table.format.points} points, {len(table.to_bytes())} bytes")
 print(f"max error {certificate.max_error_counts:.3f} counts "
       f"(bound {certificate.predicted_error_counts:.3f})")
-masters = np.arange(0, 36000, 4500)
+period = table.format.master_counts                  # master counts per cam period (36864)
+masters = np.arange(0, period, period // 8)           # every 45 deg
 print("slave counts:", table.lookup(masters).tolist())
 again = ecam.CamTable.from_bytes(table.to_bytes())
 assert (again.lookup(masters) == table.lookup(masters)).all()

@@ -233,7 +233,7 @@ def test_drive_checks_the_node_id_before_opening_the_bus(monkeypatch):
     monkeypatch.setattr(drive_command, "open_drive_bus", refuse)
     args = argparse.Namespace(interface="udp_multicast", channel=None, node_id=300, heartbeat_ms=None,
                               scene=None)
-    with pytest.raises(InputError, match=r"--node-id: 300 should be an integer in 1\.\.127"):
+    with pytest.raises(InputError, match=r"node_id: 300 should be an integer in 1\.\.127"):
         drive_command.drive_command(args)
 
 

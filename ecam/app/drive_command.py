@@ -115,7 +115,7 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     from hil_sim.rig import drive_for_scene
 
     if args.node_id is not None:  # before the bus opens: a wrong id is bad input, not a bus error
-        validate.integer("--node-id", args.node_id, minimum=1, maximum=127)
+        validate.integer("node_id", args.node_id, minimum=1, maximum=127)
     bus, channel = open_drive_bus(args.interface, args.channel)
     try:
         if args.scene is not None:

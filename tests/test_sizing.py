@@ -302,3 +302,27 @@ def test_the_knifes_maximum_speed_is_limited_by_its_motors_heat():
     # RMS grows with the square of the speed (inertia torque), the S1 limit falls with it: the
     # speed where they meet lies between the two, by the quadratic through their ratios
     assert below.ratio < 1.0 < above.ratio
+
+
+def test_the_summary_in_the_text_the_json_the_html_and_the_figure():
+    from ecam.app.sizing_html import sizing_section
+    from hil_sim.rig import run_scene
+    from hil_sim.rig.sizing_plot import has_torque_speed
+    from hil_sim.scene import DurationSpec
+
+    knife = run_scene(replace(_knife(), duration=DurationSpec(cycles=200)), path="fast")
+    text = knife.to_text()
+    assert "sizing (one cam period at the cruise speed" in text
+    assert "  motor 1FT7044-AK7: " in text and "  gearhead SP075-MF1-5: " in text
+    data = knife.to_dict()
+    parts = data["sizing"]["components"]
+    assert set(parts) == {"motor", "module", "gearhead", "coupling", "brake_resistor"}
+    thermal = knife.check("motor_thermal")
+    assert parts["motor"]["utilisation_percent"] >= 100.0 * thermal.ratio
+    page = sizing_section(data)
+    assert page.startswith("<h3>Sizing</h3>") and "1FT7044-AK7" in page and "table 4-8" in page
+    assert has_torque_speed(knife)
+    stiff = run_scene(replace(load_scene(SCENES / "stiff_coupling.toml"),
+                              duration=DurationSpec(cycles=50)), path="fast")
+    assert "sizing (" not in stiff.to_text() and sizing_section(stiff.to_dict()) == ""
+    assert not has_torque_speed(stiff)

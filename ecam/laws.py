@@ -197,16 +197,22 @@ class LawTable:
         pieces = [piece for law_ in self.laws for piece in law_.pieces]
         counts = np.array([len(law_.pieces) for law_ in self.laws], dtype=np.int64)
         self.first_piece = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        # Inner breaks, one row per law, NaN past a law's own (NaN compares false: no piece step).
-        self.breaks = np.full((len(self.laws), int(counts.max()) - 1), np.nan)
-        for i, law_ in enumerate(self.laws):
-            self.breaks[i, : len(law_.breaks)] = law_.breaks
         # Laws of many breaks (a spline's knots) find their piece by bisection; the others by a
         # pass per break column, over the columns they use only.
         self._many = [(i, np.array(law_.breaks)) for i, law_ in enumerate(self.laws)
                       if len(law_.breaks) > _FEW_BREAKS]
         narrow = max((len(law_.breaks) for law_ in self.laws if len(law_.breaks) <= _FEW_BREAKS), default=0)
+        # Inner breaks, one row per law, NaN past a law's own (NaN compares false: no piece step);
+        # the columns the laws of few breaks use (a spline's knots would make it laws x knots).
+        self.breaks = np.full((len(self.laws), narrow), np.nan)
+        for i, law_ in enumerate(self.laws):
+            if len(law_.breaks) <= _FEW_BREAKS:
+                self.breaks[i, : len(law_.breaks)] = law_.breaks
         self._break_columns = [self.breaks[:, k].copy() for k in range(narrow)]
+        # Every law's breaks in one array: law i's are break_values[break_first[i]:][:break_count[i]].
+        self.break_count = counts - 1
+        self.break_first = np.concatenate([[0], np.cumsum(self.break_count)[:-1]]).astype(np.int64)
+        self.break_values = np.array([b for law_ in self.laws for b in law_.breaks], dtype=float)
         self.piece_start = np.array([piece.start for piece in pieces])
         self.piece_end = np.array([piece.end for piece in pieces])
         width = max(1, max(len(piece.poly) for piece in pieces))

@@ -962,14 +962,22 @@ class _SegmentArrays:
     def smooth_pieces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every smooth piece of every segment, between its start, its law's breaks and its end,
         in master units: (segment index, start, end), pieces of zero length left out."""
-        breaks = self.laws.breaks[self.law_index]
-        edges = np.column_stack([self.master_start, self.master_start[:, None] + breaks * self.span[:, None],
-                                 self.master_end])
-        edges.sort(axis=1)  # NaN (a law with fewer breaks) last
-        p0, p1 = edges[:, :-1], edges[:, 1:]
-        real = p0 < p1  # false for NaN and for breaks that round onto each other
-        segment = np.broadcast_to(np.arange(len(self.segments))[:, None], p0.shape)
-        return segment[real], p0[real], p1[real]
+        # Each segment's edges -- its start, its law's breaks scaled, its end -- flattened, sorted
+        # within the segment: linear in the pieces (a spline segment has thousands).
+        count = self.laws.break_count[self.law_index] + 2
+        segment = np.repeat(np.arange(len(self.segments)), count)
+        rank = np.arange(segment.size) - np.repeat(np.cumsum(count) - count, count)  # 0 .. count - 1
+        inner = (rank > 0) & (rank < count[segment] - 1)
+        index = self.laws.break_first[self.law_index][segment[inner]] + rank[inner] - 1
+        edges = np.where(rank == 0, self.master_start[segment], self.master_end[segment])
+        edges[inner] = self.master_start[segment[inner]] + self.laws.break_values[index] * self.span[segment[inner]]
+        edges = edges[np.lexsort((edges, segment))]
+        last = np.cumsum(count) - 1  # each segment's last edge: no piece starts there
+        start = np.ones(segment.size, dtype=bool)
+        start[last] = False
+        p0, p1 = edges[start], edges[np.flatnonzero(start) + 1]
+        real = p0 < p1  # false for breaks that round onto each other
+        return segment[start][real], p0[real], p1[real]
 
 
 def _linspace_rows(start: np.ndarray, stop: np.ndarray, num: int) -> np.ndarray:

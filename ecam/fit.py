@@ -321,13 +321,15 @@ def _fit_stretch(x, y, w, slack, lo, hi, periodic, net, tolerance, max_knots, sl
             break
         finer = system.refine(tol_n, MAX_REFINED_KNOTS)
         if finer is None:
-            best = system.least_deviation() * yscale
-            raise validate.fail("tolerance", tolerance, f"at least {best:.3g} {slave_unit}, the smallest largest "
-                                f"deviation a quintic spline on {system.K} knot intervals reaches here")
+            break
         placement = "refined where the tolerance was missed"
         system = _System(u, target, w, finer, periodic, slack)
     else:
-        raise validate.fail("tolerance", tolerance, "a deviation the refined knots reach")
+        lam = system.smoothest_within(tol_n)
+    if lam is None:
+        best = system.least_deviation() * yscale
+        raise validate.fail("tolerance", tolerance, f"at least {best:.3g} {slave_unit}, the smallest largest "
+                            f"deviation a quintic spline on {system.K} knot intervals reaches here")
     coef = system.coefficients(lam)
     law, start = _spline(system, coef, length, yscale, center, net, periodic, x - lo)
     return {"law": law, "start": start, "lambda": lam * length**5, "effective": system.trace(lam), "knots": system.K,

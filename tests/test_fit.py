@@ -414,3 +414,12 @@ def test_the_fitted_seed_cam_runs_on_the_rig_as_the_seed_does(tmp_path):
     for check in fitted.checks:
         if check.name in ("coupling_peak_torque", "coupling_rms_torque", "tracking_error"):
             assert check.value == pytest.approx(by_name[check.name], rel=0.05), check.name
+
+
+def test_a_tolerance_below_the_scatter_of_many_points_is_refused_with_the_reachable_deviation():
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.0, 100.0, 2001)  # more points than knots: the spline cannot follow the noise
+    y = np.sin(x / 10) + 1e-2 * rng.standard_normal(x.size)
+    with pytest.raises(InputError, match=r"^tolerance: 0.001 should be at least [0-9.]+ mm, the smallest largest "
+                                         r"deviation a quintic spline on \d+ knot intervals reaches here$"):
+        fit_points(x, y, tolerance=1e-3)

@@ -339,6 +339,10 @@ class Scene:
     sizing : hil_sim.sizing_spec.SizingSpec
         The motor, drive module and gearhead (``[motor]``, and the sizing fields of
         ``[drive]`` and ``[mechanics]``); empty when the scene gives none.
+    phase : float
+        The axis's phase offset against the master [master units]: the cam is looked up at the
+        master position plus this (an axis of a machine, :mod:`hil_sim.machine`; 0 in a scene
+        file).
     """
 
     name: str
@@ -354,6 +358,7 @@ class Scene:
     description: str = ""
     fidelity: str = "auto"
     sizing: SizingSpec = field(default_factory=SizingSpec)
+    phase: float = 0.0
 
     def with_master_speed(self, speed: float) -> "Scene":
         """The same scene at another master speed [master units/s]."""

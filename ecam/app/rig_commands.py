@@ -14,10 +14,12 @@ from ecam.atomic_files import check_outputs, write_files
 from ecam.errors import EcamError, InputError
 from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.rig.bode import bode_path
+from hil_sim.machine import load_machine
 from hil_sim.scene import load_scene
 
 from .html_report import html_report
 from .junit import junit_xml
+from .machine_command import machine_command
 from .multi import exit_status, run_scenes, scene_files, summary_table
 
 
@@ -69,7 +71,10 @@ def sim_command(args: argparse.Namespace) -> int:
         path = path[0]
     if not str(path):
         raise InputError("scene '': should be a path (an empty argument names no file)")
-    scene = load_scene(path)
+    machine = load_machine(path)  # a scene file in today's format is a machine of one
+    if not machine.single:
+        return machine_command(argparse.Namespace(**{**vars(args), "scene": path}), machine)
+    scene = machine.axes[0]
     inputs = [path] + ([scene.cam.file] if scene.cam.file else [])
     _check_outputs(args, inputs)  # before the run: never over the scene or its cam
     if args.plot:

@@ -34,6 +34,26 @@ from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
 _SYNC_COB_ID = 0x80
 
 
+class Station:
+    """One axis of a run on the bus: its scene, plan, node on the controller's network, drive
+    and the facts of its set-up (a single-axis run is a machine of one station)."""
+
+    def __init__(self, scene, plan: Plan, node, drive: VirtualDrive, setup: dict) -> None:
+        self.scene, self.plan, self.node, self.drive, self.setup = scene, plan, node, drive, setup
+        self.axis = drive.axis
+        self.streams = _set_point_streams(scene, plan, node)
+        # the data lengths of the frames it puts on the bus every SYNC at cruise (the machine's
+        # bus sizing, hil_sim.bus_sizing): the set points streamed to the end, the TPDOs sent on
+        # every SYNC (transmission type 1, CiA 301 7.5.2.35)
+        setup["cyclic_frames"] = (
+            [length for _, _, length, _, until in self.streams if until >= plan.cycles]
+            + [pdo_codec(tpdo)[0].size for tpdo in node.tpdo.map.values()
+               if tpdo.enabled and tpdo.trans_type == 1])
+        self.recorder = Recorder(plan.cycles)
+        self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
+        self.stopped: str | None = None
+
+
 def run_cycles(scene, plan: Plan, controller: LockstepMaster, node, drive: VirtualDrive,
                load: BusLoad, injector: FaultInjector | None, setup: dict) -> Record:
     """Run the planned cycles (or until a drive fault) and return the record.
@@ -53,14 +73,30 @@ def run_cycles(scene, plan: Plan, controller: LockstepMaster, node, drive: Virtu
     setup : dict
         Facts of the set-up, carried into the record.
     """
-    cycles = _Cycles(scene, plan, controller, node, drive, load, injector)
-    stopped = cycles.run()
-    bus = load.summary()
-    bus.update(cycles.deferred)
-    return cycles.recorder.record(
-        stopped=stopped, emcy=[(round(e.timestamp, 9), e.code) for e in node.emcy.log],
-        model=drive.axis.model, model_reason=drive.axis.model_reason, setup=setup, bus=bus,
-        faults=injector.summary() if injector else None, path="canopen")
+    return run_stations([Station(scene, plan, node, drive, setup)], controller, load,
+                        injector)[0]
+
+
+def run_stations(stations: list, controller: LockstepMaster, load: BusLoad,
+                 injector: FaultInjector | None) -> list:
+    """Run the stations' planned cycles in lock-step on one bus (one SYNC, every node's frames
+    arbitrated together) until the end or a drive fault (which stops the machine); return one
+    record per station, each with the machine's bus load and its own late frames."""
+    cycles = _Cycles(stations, controller, load, injector)
+    cycles.run()
+    summary = load.summary()
+    faults = injector.summary() if injector else None
+    records = []
+    for station in stations:
+        bus = dict(summary)
+        bus.update(station.deferred)
+        drive = station.drive
+        records.append(station.recorder.record(
+            stopped=station.stopped,
+            emcy=[(round(e.timestamp, 9), e.code) for e in station.node.emcy.log],
+            model=drive.axis.model, model_reason=drive.axis.model_reason, setup=station.setup,
+            bus=bus, faults=faults, path="canopen"))
+    return records
 
 
 class _Cycles:
@@ -70,12 +106,13 @@ class _Cycles:
     a run is up to millions of cycles of a handful of frames each.
     """
 
-    def __init__(self, scene, plan: Plan, controller: LockstepMaster, node,
-                 drive: VirtualDrive, load: BusLoad, injector: FaultInjector | None) -> None:
+    def __init__(self, stations: list, controller: LockstepMaster, load: BusLoad,
+                 injector: FaultInjector | None) -> None:
+        plan = stations[0].plan
+        self.stations = stations
         self.cycles = plan.cycles
         self.cycle_s = plan.cycle_s
-        self.drive = drive
-        self.axis = drive.axis
+        self.drives = [s.drive for s in stations]
         self.send = controller.bus.send
         self.recv = controller.bus.recv
         self.notify = controller.notify
@@ -83,38 +120,43 @@ class _Cycles:
         self.end_cycle = load.end_cycle
         self.budget_bits = load.budget_bits
         self.decide = injector.decide if injector else None
-        self.streams = _set_point_streams(scene, plan, node)
+        # every station's set points, in the stations' order: (station, stream)
+        self.streams = [(s, stream) for s in stations for stream in s.streams]
+        self.owner = {stream[0]: s for s, stream in self.streams}  # RPDO COB-ID -> station
         self.sync = can.Message(arbitration_id=_SYNC_COB_ID, data=b"", is_extended_id=False,
                                 check=False)
         self.sync_bits = frame_bits(0)
         self.sync_offsets = plan.sync_offsets.tolist()
-        self.recorder = Recorder(self.cycles)
-        self.decoders = self._tpdo_decoders(node)
+        self.decoders = {}
+        for station in stations:
+            self.decoders.update(self._tpdo_decoders(station))
         self.held_tx: dict[int, list] = {}  # cycle -> RPDOs that go out after its SYNC
         self.held_rx: dict[int, list] = {}  # cycle -> TPDOs that reach the controller in it
         self.rpdo_fate = DELIVER  # of the next cycle's RPDOs, decided in the cycle before
         self.rpdo_late: set = set()  # COB-IDs of the next cycle's RPDOs that miss its SYNC
         self.carried_bits = 0  # bits of frames that go right after the next SYNC
-        self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
 
-    def _tpdo_decoders(self, node) -> dict:
-        """COB-ID -> (unpack, [(field number, the record's array)]) of each enabled TPDO."""
+    @staticmethod
+    def _tpdo_decoders(station: Station) -> dict:
+        """COB-ID -> (unpack, [(field number, the record's array)], station) of each enabled
+        TPDO of the station's node."""
         decoders = {}
-        series = self.recorder.series
-        for tpdo in node.tpdo.map.values():
+        series = station.recorder.series
+        for tpdo in station.node.tpdo.map.values():
             if not tpdo.enabled:
                 continue
             codec, indexes = pdo_codec(tpdo)
             slots = [(i, series[FROM_TPDOS[index]]) for i, index in enumerate(indexes)
                      if index in FROM_TPDOS]
-            decoders[tpdo.cob_id] = (codec.unpack_from, slots)
+            decoders[tpdo.cob_id] = (codec.unpack_from, slots, station)
         return decoders
 
-    def run(self) -> str | None:
-        """All cycles, or up to a drive fault; return why the run stopped early, if so."""
-        self.drive.axis_wall_s = 0.0
+    def run(self) -> None:
+        """All cycles, or up to a drive fault (then every station's ``stopped`` says why)."""
+        for drive in self.drives:
+            drive.axis_wall_s = 0.0
         cycle_s = self.cycle_s
-        recorder = self.recorder
+        stations = self.stations
         self.rpdo_fate = self._fate(0, "rpdo")
         for k in range(self.cycles):
             now = k * cycle_s
@@ -130,17 +172,18 @@ class _Cycles:
             if self.held_tx:
                 for msg in self.held_tx.pop(k, ()):
                     self.send(msg)
-            self.drive.process()
+            for drive in self.drives:
+                drive.process()
             if self.held_rx:
                 self._release_held_tpdos(k)
             self._receive_and_arbitrate(k)
-            recorder.probe(k, self.axis)
+            for station in stations:
+                station.recorder.probe(k, station.axis)
             self.end_cycle()
-            recorder.ran = k + 1
-            stopped = self._fault(k, now)
-            if stopped:
-                return stopped
-        return None
+            for station in stations:
+                station.recorder.ran = k + 1
+            if self._fault(k, now):
+                return
 
     def _fate(self, k: int, kind: str) -> int:
         """DELIVER, DROP, or the cycles a frame of ``kind`` is held back (the injector's call)."""
@@ -150,7 +193,7 @@ class _Cycles:
         """Cycle k's RPDOs that go on the bus now (delayed ones are held, lost ones are gone)."""
         fate = self.rpdo_fate
         out = []
-        for cob_id, pack, length, fields, until in self.streams:
+        for _, (cob_id, pack, length, fields, until) in self.streams:
             if k >= until:
                 continue
             msg = can.Message(arbitration_id=cob_id, data=pack(*(int(v[k]) for v in fields)),
@@ -163,18 +206,19 @@ class _Cycles:
         return out
 
     def _sync(self, k: int, now: float) -> None:
-        """The SYNC runs the drive one period; without it the drive still handles the RPDO and
-        runs free (its control loop goes on, no TPDOs)."""
+        """The SYNC runs the drives one period; without it each drive still handles its RPDO
+        and runs free (its control loop goes on, no TPDOs)."""
         self.add_frame(0)  # a lost frame took its bus time too
         if self._fate(k, "sync") == DELIVER:
             self.sync.timestamp = now + self.sync_offsets[k]
             self.send(self.sync)  # the bus hands a copy to each receiver
         else:
-            self.drive.process()
-            self.drive.free_run()
+            for drive in self.drives:
+                drive.process()
+                drive.free_run()
 
     def _decode(self, k: int, msg) -> None:
-        unpack, slots = self.decoders[msg.arbitration_id]
+        unpack, slots, _ = self.decoders[msg.arbitration_id]
         fields = unpack(msg.data)
         for i, target in slots:
             target[k] = fields[i]
@@ -184,8 +228,9 @@ class _Cycles:
             self._decode(k, msg)
 
     def _receive_and_arbitrate(self, k: int) -> None:
-        """Read every frame the drive answered: TPDOs go through the fault injector and, with
-        the next cycle's RPDO, through arbitration; anything else (EMCY, heartbeat) to canopen."""
+        """Read every frame the drives answered: TPDOs go through the fault injector and, with
+        the next cycle's RPDOs, through arbitration; anything else (EMCY, heartbeat) to
+        canopen."""
         waiting = []
         while True:
             msg = self.recv(timeout=0)
@@ -205,8 +250,8 @@ class _Cycles:
         if k + 1 < self.cycles:
             self.rpdo_fate = self._fate(k + 1, "rpdo")
             if self.rpdo_fate != DROP:
-                frames += [(cob_id, length, None) for cob_id, _, length, _, until in self.streams
-                           if k + 1 < until]
+                frames += [(cob_id, length, None) for _, (cob_id, _, length, _, until)
+                           in self.streams if k + 1 < until]
         used = self.sync_bits + self.carried_bits
         on_time, late = arbitrate(frames, self.budget_bits, used)
         for _, _, msg in on_time:
@@ -216,21 +261,34 @@ class _Cycles:
         for cob_id, _, msg in late:
             if msg is None:
                 self.rpdo_late.add(cob_id)
-                self.deferred["late_set_points"] += 1
+                station = self.owner[cob_id]
+                station.deferred["late_set_points"] += 1
             else:
                 self.held_rx.setdefault(k + 1, []).append(msg)
-                self.deferred["late_tpdos"] += 1
-        if late and self.deferred["first_late_cycle"] is None:
-            self.deferred["first_late_cycle"] = k
+                station = self.decoders[cob_id][2]
+                station.deferred["late_tpdos"] += 1
+            if station.deferred["first_late_cycle"] is None:
+                station.deferred["first_late_cycle"] = k
 
-    def _fault(self, k: int, now: float) -> str | None:
-        """Why the run stops after cycle ``k`` (a drive fault), or None."""
-        drive = self.drive
-        if drive.state not in (cia402.FAULT, cia402.FAULT_REACTION_ACTIVE):
-            return None
-        code = drive.values[ERROR_CODE]
-        return (f"drive fault 0x{code:04X} at cycle {k} (t {now + self.cycle_s:.6g} s), "
-                f"statusword 0x{drive.values[STATUSWORD]:04X}")
+    def _fault(self, k: int, now: float) -> bool:
+        """Whether a drive faulted in cycle ``k``: it stops the machine, every station's
+        ``stopped`` says which drive and why."""
+        faulted = None
+        for station in self.stations:
+            drive = station.drive
+            if drive.state in (cia402.FAULT, cia402.FAULT_REACTION_ACTIVE):
+                code = drive.values[ERROR_CODE]
+                station.stopped = (f"drive fault 0x{code:04X} at cycle {k} (t "
+                                   f"{now + self.cycle_s:.6g} s), statusword "
+                                   f"0x{drive.values[STATUSWORD]:04X}")
+                faulted = faulted or station
+        if faulted is None:
+            return False
+        for station in self.stations:
+            if station.stopped is None:
+                station.stopped = (f"machine stopped at cycle {k}: axis {faulted.scene.name} "
+                                   f"(node {faulted.drive.node_id}) faulted")
+        return True
 
 
 def _set_point_streams(scene, plan: Plan, node) -> list:

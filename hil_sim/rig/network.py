@@ -23,7 +23,8 @@ from hil_sim.scene import Scene
 
 
 class LockstepMaster(SimNetwork):
-    """A controller's canopen network in lock-step with one :class:`VirtualDrive`.
+    """A controller's canopen network in lock-step with one :class:`VirtualDrive` (or a list
+    of them: a machine's drives on one bus).
 
     Every frame it sends is handled by the drive at once, and the drive's answers are fed to
     this network before the call returns, so canopen's blocking SDO client, NMT master and
@@ -34,7 +35,7 @@ class LockstepMaster(SimNetwork):
     ----------
     bus : can.BusABC
         The controller's bus, on the drive's channel.
-    drive : VirtualDrive
+    drive : VirtualDrive or list of VirtualDrive
     load : BusLoad, optional
         Counts the bits of every frame sent or received.
 
@@ -46,10 +47,13 @@ class LockstepMaster(SimNetwork):
     576
     """
 
-    def __init__(self, bus, drive: VirtualDrive, load: BusLoad | None = None) -> None:
-        super().__init__(bus, lambda: drive.time_s)
-        self.drive = drive
-        self.load = load if load is not None else BusLoad(1_000_000, drive.cycle_s)
+    def __init__(self, bus, drive, load: BusLoad | None = None) -> None:
+        # a machine's drives share the bus (and the simulated clock: they run in lock-step)
+        drives = list(drive) if isinstance(drive, (list, tuple)) else [drive]
+        super().__init__(bus, lambda: drives[0].time_s)
+        self.drive = drives[0]
+        self.drives = drives
+        self.load = load if load is not None else BusLoad(1_000_000, self.drive.cycle_s)
         self.frames = 0
 
     def send_message(self, can_id, data, remote=False):
@@ -62,8 +66,9 @@ class LockstepMaster(SimNetwork):
         self.load.add_frame(length)
 
     def settle(self) -> None:
-        """Let the drive handle what was sent, then handle what it answered."""
-        self.drive.process()
+        """Let the drives handle what was sent, then handle what they answered."""
+        for drive in self.drives:
+            drive.process()
         while True:
             msg = self.bus.recv(timeout=0)
             if msg is None:
@@ -101,6 +106,7 @@ def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualD
     SimulationError
         The drive did not reach the state or the table CRC a step expects.
     """
+    before = controller.frames  # a machine's drives are set up one after the other
     drive.boot()
     controller.settle()
     if node.nmt.state != "PRE-OPERATIONAL":
@@ -126,7 +132,7 @@ def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualD
     node.nmt.state = "OPERATIONAL"
     controller.settle()
     _enable(controller, node)
-    facts["setup_frames"] = controller.frames
+    facts["setup_frames"] = controller.frames - before
     return facts
 
 

@@ -139,6 +139,8 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
     # jittered instant.
     t_set = (k + spec.lead_cycles) * cycle_s + jitter
     master, slave_plan = _master_motion(scene, cam, speed, per_unit)
+    if scene.phase:  # an axis of a machine: its cam runs at the master plus its phase offset
+        master = _Shifted(master, scene.phase * per_unit)
     master_end = np.rint(master.position(t_set)).astype(np.int64)
     targets = table.lookup(master_end)
     velocities = table.slope(master_end) / 65536.0 * master.velocity(t_set)
@@ -206,6 +208,20 @@ def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float
                 f"{why}{' (slave positions in counts)' if 'position' in why else ''}") from None
         return slave_plan.master, slave_plan
     return ConstantSpeed(speed), None
+
+
+class _Shifted:
+    """A master motion shifted by a constant phase [counts]: the master an axis of a machine
+    sees (:attr:`hil_sim.scene.Scene.phase`); velocity and timing are the master's."""
+
+    def __init__(self, master, offset_counts: float) -> None:
+        self.master, self.offset = master, offset_counts
+
+    def position(self, t):
+        return self.master.position(t) + self.offset
+
+    def velocity(self, t):
+        return self.master.velocity(t)
 
 
 def _check_engagement(spec, profile, speed_units: float) -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import canopen
 import numpy as np
@@ -25,7 +25,7 @@ from hil_sim.rig.bode import bode_path, bode_series, plot_bode
 from hil_sim.rig.cam import CompiledCam, cam_acceleration, compile_cam
 from hil_sim.rig.fast import run_fast
 from hil_sim.rig.fidelity import Selection, select
-from hil_sim.rig.loop import run_cycles
+from hil_sim.rig.loop import Station, run_stations
 from hil_sim.rig.network import LockstepMaster, set_up_drive
 from hil_sim.rig.plan import PreparedRun, count_cycles, cruise_s, plan_run
 from hil_sim.rig.plot import plot_report
@@ -70,41 +70,93 @@ def run_scene(scene, *, plot=None, path: str = "canopen", tuning=None) -> Report
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     wall_start = time.perf_counter()
+    axis = ready_axis(scene, tuning)
+    records, timing = run_axes([axis], path)
+    report = report_axis(axis, records[0], timing, 0, wall_start)
+    if plot is not None:
+        plot_report(report, plot)
+        plot_bode(report, bode_path(plot))
+    return report
+
+
+@dataclass
+class AxisRun:
+    """One axis made ready to run (a single-axis run is a machine of one of these):
+
+    Attributes
+    ----------
+    run : PreparedRun
+    injector : FaultInjector or None
+        The bus's fault injector (a machine uses its first axis's: one bus).
+    selection : hil_sim.rig.fidelity.Selection
+        The effects the run models, and why.
+    setup : AxisSetup
+        The drive's axis with those effects.
+    tuning_s, effects_s : float
+        Wall time of the commissioning and of the effects' measurement [s].
+    """
+
+    run: PreparedRun
+    injector: FaultInjector | None
+    selection: Selection
+    setup: AxisSetup
+    tuning_s: float
+    effects_s: float
+
+
+def ready_axis(scene: Scene, tuning=None) -> AxisRun:
+    """Commission (unless ``tuning`` is given), prepare and select the effects of one axis."""
+    start = time.perf_counter()
     if tuning is None:  # the drive's commissioning, timed on its own
         tuning = commission(scene)
-    tuning_s = time.perf_counter() - wall_start
+    tuning_s = time.perf_counter() - start
     run, injector = prepare(scene, tuning)
     prepared = time.perf_counter()
     selection = select_effects(run)
     effects_s = time.perf_counter() - prepared
-    setup = axis_setup(run, selection.included)
+    return AxisRun(run, injector, selection, axis_setup(run, selection.included), tuning_s,
+                   effects_s)
+
+
+def run_axes(axes: list, path: str) -> tuple[list, dict]:
+    """Run the axes in lock-step: bus-free (each axis alone: without a bus nothing couples
+    them) or over one CANopen network. Returns one record per axis and the timing:
+    ``setup_s``, ``loop_s`` (the machine's), ``axis_s`` (a list: each axis's servo and plant
+    time)."""
     loop_start = time.perf_counter()
     if path == "fast":
-        record = run_fast(run, setup)
-        timing = {"setup_s": 0.0, "loop_s": time.perf_counter() - loop_start}
-        timing["axis_s"] = timing["loop_s"]
-    else:
-        record, timing = _run_on_the_bus(run, injector, setup)
+        records, axis_s = [], []
+        for axis in axes:
+            start = time.perf_counter()
+            records.append(run_fast(axis.run, axis.setup))
+            axis_s.append(time.perf_counter() - start)
+        return records, {"setup_s": 0.0, "loop_s": time.perf_counter() - loop_start,
+                         "axis_s": axis_s}
+    return _run_on_the_bus(axes)
+
+
+def report_axis(axis: AxisRun, record: Record, timing: dict, index: int,
+                wall_start: float) -> Report:
+    """Axis ``index``'s report from its record (``timing``: :func:`run_axes`')."""
+    run, setup, scene = axis.run, axis.setup, axis.run.scene
     analysis_start = time.perf_counter()
     report = analyse(run, record, setup)
-    describe_selection(report, selection)
+    describe_selection(report, axis.selection)
     report.summary["tuning"] = run.tuning.to_dict()
     report.series.update(bode_series(setup, scene.drive.cycle_s))
     analysis_s = time.perf_counter() - analysis_start
     wall_s = time.perf_counter() - wall_start
-    loop_s, axis_s = timing["loop_s"], timing["axis_s"]
+    loop_s, axis_s = timing["loop_s"], timing["axis_s"][index]
     simulated_s = report.cycles * scene.drive.cycle_s
     report.timing = {
-        "wall_s": wall_s, "tuning_s": tuning_s, "effects_s": effects_s, "setup_s": timing["setup_s"],
+        "wall_s": wall_s, "tuning_s": axis.tuning_s, "effects_s": axis.effects_s,
+        "setup_s": timing["setup_s"],
         "loop_s": loop_s, "axis_s": axis_s, "protocol_s": loop_s - axis_s,
-        "analysis_s": analysis_s, "simulated_s": simulated_s, "path": path,
+        "analysis_s": analysis_s, "simulated_s": simulated_s, "path": record.path,
         "real_time_factor": simulated_s / wall_s if wall_s > 0 else math.inf,
         "loop_real_time_factor": simulated_s / loop_s if loop_s > 0 else math.inf,
         "us_per_cycle": 1e6 * loop_s / max(report.cycles, 1),
     }
-    if plot is not None:
-        plot_report(report, plot)
-        plot_bode(report, bode_path(plot))
     return report
 
 
@@ -243,32 +295,40 @@ def describe_selection(report: Report, selection: Selection) -> None:
         report.model_reason = f"{why}." if why.startswith(kind) else f"{kind}: {why}."
 
 
-def _run_on_the_bus(run: PreparedRun, injector: FaultInjector | None,
-                    setup: AxisSetup) -> tuple[Record, dict]:
-    """Boot the drive on a virtual channel of its own, set it up from a controller, run the
-    cycles; always close the drive and the buses. Returns the record and where the time went."""
-    scene = run.scene
+def _run_on_the_bus(axes: list) -> tuple[list, dict]:
+    """Boot the axes' drives on a virtual channel of their own, set each up from one
+    controller, run the cycles; always close the drives and the buses. Returns the records and
+    where the time went."""
+    first = axes[0].run.scene
     channel = f"hil-sim-{next(_channels)}"
-    drive_bus = open_virtual_bus(channel)
+    buses = [open_virtual_bus(channel) for _ in axes]
     master_bus = open_virtual_bus(channel)
-    load = BusLoad(scene.bus.bitrate, scene.drive.cycle_s)
-    drive = None
+    load = BusLoad(first.bus.bitrate, first.drive.cycle_s)
+    drives = []
     start = time.perf_counter()
     try:
-        drive = VirtualDrive(bus=drive_bus, node_id=scene.drive.node_id,
-                             initial_counts=run.plan.initial_counts, **drive_options(setup))
-        controller = LockstepMaster(master_bus, drive)
-        node = canopen.RemoteNode(scene.drive.node_id, load_od(EDS_PATH, scene.drive.node_id))
-        controller.add_node(node)
-        facts = set_up_drive(scene, controller, node, drive, run.cam)
+        for axis, drive_bus in zip(axes, buses):
+            drives.append(VirtualDrive(bus=drive_bus, node_id=axis.run.scene.drive.node_id,
+                                       initial_counts=axis.run.plan.initial_counts,
+                                       **drive_options(axis.setup)))
+        controller = LockstepMaster(master_bus, drives)
+        stations = []
+        for axis, drive in zip(axes, drives):
+            scene = axis.run.scene
+            node = canopen.RemoteNode(scene.drive.node_id, load_od(EDS_PATH, scene.drive.node_id))
+            controller.add_node(node)
+            facts = set_up_drive(scene, controller, node, drive, axis.run.cam)
+            stations.append(Station(scene, axis.run.plan, node, drive, facts))
         setup_s = time.perf_counter() - start
-        record = run_cycles(scene, run.plan, controller, node, drive, load, injector, facts)
+        records = run_stations(stations, controller, load, axes[0].injector)
         loop_s = time.perf_counter() - start - setup_s
-        return record, {"setup_s": setup_s, "loop_s": loop_s, "axis_s": drive.axis_wall_s}
+        return records, {"setup_s": setup_s, "loop_s": loop_s,
+                         "axis_s": [drive.axis_wall_s for drive in drives]}
     finally:
-        if drive is not None:
+        for drive in drives:
             drive.close()
-        drive_bus.shutdown()
+        for bus in buses:
+            bus.shutdown()
         master_bus.shutdown()
 
 

@@ -423,3 +423,24 @@ def test_a_tolerance_below_the_scatter_of_many_points_is_refused_with_the_reacha
     with pytest.raises(InputError, match=r"^tolerance: 0.001 should be at least [0-9.]+ mm, the smallest largest "
                                          r"deviation a quintic spline on \d+ knot intervals reaches here$"):
         fit_points(x, y, tolerance=1e-3)
+
+
+def test_weights_pull_the_fit_and_a_zero_weight_leaves_a_row_out(tmp_path):
+    x, y = noisy(count=361)
+    y = y.copy()
+    y[100] += 0.05  # an outlier
+    heavy = np.ones(x.size)
+    heavy[100] = 100.0
+    plain = fit_points(x, y, periodic=True)
+    pulled = fit_points(x, y, heavy, periodic=True)
+    assert abs(pulled.residuals[100]) < abs(plain.residuals[100])
+    left_out = np.ones(x.size)
+    left_out[100] = 0.0
+    without = fit_points(x, y, left_out, periodic=True)
+    assert without.certificate["points_read"] == x.size - 1
+    assert abs(without.profile(x[100]) - rise_return(x[100:101])[0]) < 0.005
+    points = tmp_path / "weighted.txt"
+    points.write_text("".join(f"{float(a)!r} {float(b)!r} {float(c)!r}\n" for a, b, c in zip(x, y, left_out)))
+    done = run("fit", points, "--periodic", "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["max_deviation"] == pytest.approx(without.max_deviation, rel=1e-12)

@@ -217,3 +217,42 @@ def test_machine_durations_must_agree(tmp_path):
     with pytest.raises(InputError, match="duration: 500 cycles for axis screw, 1000 cycles for "
                                          "axis lifter should be one count"):
         run_machine(path, path="fast")
+
+
+MACHINES = ROOT / "hil_sim" / "machines"
+
+
+@pytest.fixture(scope="module")
+def line_reports():
+    path = MACHINES / "packaging_line.toml"
+    return run_machine(path, path="fast"), run_machine(path, path="canopen")
+
+
+def test_the_shipped_line_passes_on_both_paths_alike(line_reports):
+    fast, bus = line_reports
+    assert fast.passed and bus.passed
+    assert [a.scene for a in bus.axes] == ["knife", "pusher", "lifter", "transfer"]
+    assert [a.summary["cam_mode"] for a in bus.axes] == ["controller", "controller", "drive",
+                                                         "drive"]
+    for a, b in zip(fast.axes, bus.axes):
+        assert np.array_equal(a.series["tracking_error"], b.series["tracking_error"])
+
+
+def test_the_shipped_line_is_sized_from_its_frames(line_reports):
+    """Controller-side: RPDO 8 bytes + TPDOs 7 and 6 bytes = 135 + 125 + 115 = 375 bits;
+    drive-side: RPDO 4 bytes = 95, + 240 = 335; two of each and the SYNC (55): 1475 bits per
+    SYNC period; at 90 % of 1 Mbit/s at least 1475 / 900000 s = 1.639 ms: 2 ms fits."""
+    sizing = line_reports[1].summary["bus"]["sizing"]
+    assert sizing["axis_bits"] == {"knife": 375, "pusher": 375, "lifter": 335, "transfer": 335}
+    assert sizing["bits_per_cycle"] == 1475 and sizing["fits"]
+    assert sizing["min_cycle_s"] == pytest.approx(1475 / 900_000, rel=1e-12)
+    assert sizing["more_axes"] == {"knife": 0, "pusher": 0, "lifter": 0, "transfer": 0}
+
+
+def test_the_line_at_1_ms_does_not_fit_and_says_so():
+    report = run_machine(MACHINES / "packaging_line_1ms.toml", path="canopen")
+    assert not report.passed and not report.check("bus_load").passed
+    late = report.summary["bus"]["late"]
+    assert all(late[name]["late_set_points"] > 0 for name in late)
+    assert not report.summary["bus"]["sizing"]["fits"]
+    assert "DOES NOT FIT" in report.to_text()

@@ -256,3 +256,15 @@ def test_the_line_at_1_ms_does_not_fit_and_says_so():
     assert all(late[name]["late_set_points"] > 0 for name in late)
     assert not report.summary["bus"]["sizing"]["fits"]
     assert "DOES NOT FIT" in report.to_text()
+
+
+def test_junit_has_a_testcase_per_machine_and_axis_check(pair_file, tmp_path):
+    import xml.etree.ElementTree as ET
+    junit = tmp_path / "machine.xml"
+    out = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(pair_file), "--junit",
+                          str(junit)], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    names = [case.get("name") for case in ET.parse(junit).getroot().iter("testcase")]
+    assert names[:2] == ["bus_load", "faults"]
+    assert "screw.tracking_error" in names and "lifter.loop_stability" in names
+    assert len(names) == 2 + sum(len(a.checks) for a in run_machine(pair_file, path="fast").axes)

@@ -73,7 +73,13 @@ def sim_command(args: argparse.Namespace) -> int:
         raise InputError("scene '': should be a path (an empty argument names no file)")
     machine = load_machine(path)  # a scene file in today's format is a machine of one
     if not machine.single:
-        return machine_command(argparse.Namespace(**{**vars(args), "scene": path}), machine)
+        inputs = [path] + [a.cam.file for a in machine.axes if a.cam.file]
+        _check_outputs(args, inputs)  # before the run: never over the machine or its cams
+        return machine_command(
+            argparse.Namespace(**{**vars(args), "scene": path}), machine,
+            lambda report, seconds: _write_reports(args, [(Path(path), report, seconds)],
+                                                   sys.stderr if args.json else sys.stdout,
+                                                   inputs))
     scene = machine.axes[0]
     inputs = [path] + ([scene.cam.file] if scene.cam.file else [])
     _check_outputs(args, inputs)  # before the run: never over the scene or its cam

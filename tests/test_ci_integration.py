@@ -802,7 +802,10 @@ def test_ecam_sim_several_scenes_writes_junit_and_html(tmp_path, scene_dir, brok
                           "--junit", str(junit), "--html", str(page)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 2, run.stderr
-    assert run.stdout.strip().splitlines()[-1] == "1 of 3 scenes passed, 1 could not run"
+    # the summary, then where the reports went (issue 26: several scenes say where they wrote)
+    lines = [line for line in run.stdout.splitlines() if line.strip()]
+    assert lines[-3:] == ["1 of 3 scenes passed, 1 could not run", f"wrote {junit}",
+                          f"wrote {page}"]
     progress = [line for line in run.stderr.splitlines() if line.startswith("[")]
     assert len(progress) == 3 and sum(" ERROR " in line for line in progress) == 1
     suites = ET.parse(junit).getroot()

@@ -360,7 +360,7 @@ def test_effects_listed_when_the_report_has_them(results):
     proved = replace(with_effects, summary={**with_effects.summary, "fidelity": "auto",
                                             "fidelity_proof": {"runs": 10, "check": None,
                                                                "same_verdicts": True}})
-    assert ('<span class="note">proof: runs 10, same verdicts yes</span>'
+    assert ('<span class="note">proof: 10 bus-free runs; the same verdicts</span>'
             in html_report([("s.toml", proved, seconds)]))
     _, stiff, _ = results[0]
     without = replace(stiff, summary={k: v for k, v in stiff.summary.items()

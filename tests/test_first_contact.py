@@ -251,3 +251,27 @@ def test_drive_without_a_multicast_route_names_it():
     assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1, run.stderr
     assert "no route to the multicast group" in run.stderr and "ip route add 224.0.0.0/4 dev lo" in run.stderr
     assert "not properly shut down" not in run.stderr
+
+
+def test_the_html_page_speaks_of_changes_proofs_and_harmonics_in_words():
+    """Issue 26, item 5: the effects table's change is a share of a check's limit (it mixed
+    fractions with percent points), the fidelity proof a sentence (it was a key dump), and the
+    torsional harmonic carries what it is a multiple of (it was a bare 227.802)."""
+    from ecam.app import html_report
+
+    data = {"fidelity": "auto",
+            "fidelity_proof": {"runs": 11, "cycles": 2000, "largest_difference": 0.0123,
+                               "check": "coupling_peak_torque", "same_verdicts": True,
+                               "largest_relative": 0.061, "relative_check": "wind_up",
+                               "within_relative": True},
+            "effects": [{"name": "gear_backlash", "included": True, "value": "3 arcmin",
+                         "change": 0.0525, "check": "wind_up", "why": "moves wind_up"}]}
+    page = html_report._effects(data)
+    assert "5.25 % of wind_up&#x27;s limit" in page or "5.25 % of wind_up's limit" in page
+    assert "0.0525" not in page
+    assert ("proof: 11 bus-free runs of 2000 cycles; the reduced model's checks within 1.23 % "
+            "of their limits of the full model's (coupling_peak_torque); the same verdicts; every "
+            "value within 6.1 % of the full model's (wind_up)") in page.replace("&#x27;", "'")
+    assert "largest_difference" not in page
+    table = html_report._kv_table({"torsional_harmonic": 227.802})
+    assert "227.802 x the cam cycle frequency" in table and "torsional mode" in table

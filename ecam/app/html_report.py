@@ -216,7 +216,10 @@ _LABELS = {"bitrate": ("bitrate", "bit/s"), "budget_bits": ("budget per cycle", 
            "coupling_rated_torque": ("coupling rated torque", "N m"),
            "coupling_max_torque": ("coupling max torque", "N m"),
            "motor_torque_limit": ("motor torque limit", "N m"),
-           "peak_motor_torque": ("peak motor torque", "N m")}
+           "peak_motor_torque": ("peak motor torque", "N m"),
+           # an order of the cam's harmonics, not a frequency: say so beside the number
+           "torsional_harmonic": ("torsional mode", "x the cam cycle frequency"),
+           "inertia_ratio": ("load/motor inertia ratio", "")}
 _SUFFIX_UNITS = (("_hz", "Hz"), ("_percent", "%"), ("_seconds", "s"))
 
 
@@ -265,7 +268,7 @@ def _effects(data: dict) -> str:
         proof = {k: v for k, v in proof.items() if v not in (None, "", [], {})} \
             if isinstance(proof, dict) else None
         if proof:
-            head += f'<br><span class="note">proof: {_e(_flat(proof))}</span>'
+            head += f'<br><span class="note">proof: {_e(_proof_words(proof))}</span>'
         head += "</p>"
     if not effects:
         return head + '<p class="note">This report lists no effects beyond the model above.</p>'
@@ -287,12 +290,41 @@ def _effects(data: dict) -> str:
                              f'{"included" if value else "left out"}</span></td>')
             elif key == "name":
                 cells.append(f"<td><code>{_e(_flat(value))}</code></td>")
+            elif key == "change" and isinstance(value, (int, float)) and not isinstance(value, bool):
+                # a share of the moved check's limit (hil_sim.rig.fidelity), shown as percent of it
+                what = f" of {effect['check']}'s limit" if effect.get("check") else " of a limit"
+                cells.append(f"<td>{_e(_num(100.0 * value))} %{_e(what)}</td>")
             else:
                 cells.append(f"<td>{_e(_flat(value))}</td>")
         rows.append("<tr>" + "".join(cells) + "</tr>")
     columns = "".join(f"<th>{_e(k.replace('_', ' '))}</th>" for k in keys)
     return (f'{head}<table class="effects"><thead><tr>{columns}</tr></thead><tbody>'
             f'{"".join(rows)}</tbody></table>')
+
+
+def _proof_words(proof: dict) -> str:
+    """The fidelity proof (:class:`hil_sim.rig.fidelity.Selection` ``proof``) in words: how the
+    reduced model's checks compare with the full model's, rather than its keys."""
+    words = []
+    if "runs" in proof:
+        cycles = f" of {proof['cycles']} cycles" if "cycles" in proof else ""
+        words.append(f"{proof['runs']} bus-free runs{cycles}")
+    if "largest_difference" in proof:
+        where = f" ({proof['check']})" if proof.get("check") else ""
+        words.append(f"the reduced model's checks within {_num(100.0 * proof['largest_difference'])} "
+                     f"% of their limits of the full model's{where}")
+    if "same_verdicts" in proof:
+        words.append("the same verdicts" if proof["same_verdicts"] else "a verdict differs")
+    if "largest_relative" in proof:
+        where = f" ({proof['relative_check']})" if proof.get("relative_check") else ""
+        words.append(f"every value within {_num(100.0 * proof['largest_relative'])} % of the full "
+                     f"model's{where}")
+    known = {"runs", "cycles", "largest_difference", "check", "same_verdicts", "largest_relative",
+             "relative_check", "within_relative"}
+    rest = {k: v for k, v in proof.items() if k not in known}
+    if rest:
+        words.append(_flat(rest))
+    return "; ".join(words)
 
 
 def _bus_and_faults(data: dict) -> str:

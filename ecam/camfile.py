@@ -64,11 +64,11 @@ def load_cam(path) -> CamProfile:
 MAX_FILE_BYTES = 4 * 2**20
 
 
-def read_bounded(path, what: str) -> bytes:
+def read_bounded(path, what: str, limit: int | None = None) -> bytes:
     """The bytes of a file, read without waiting and without bound on nothing.
 
-    Only regular files of at most :data:`MAX_FILE_BYTES` are read, so a device such as
-    ``/dev/zero`` or a FIFO is refused at once instead of read without bound or waited on, and
+    Only regular files of at most ``limit`` bytes (default :data:`MAX_FILE_BYTES`) are read, so
+    a device such as ``/dev/zero`` or a FIFO is refused at once instead of read without bound or waited on, and
     a kernel file that looks regular but has nothing to read now (``/proc/kmsg``) is refused
     instead of waited on. Everything that keys, hashes or parses a user's file reads it here.
 
@@ -78,6 +78,7 @@ def read_bounded(path, what: str) -> bytes:
         A missing, unreadable, irregular or oversized file: one line naming the file and what
         is wrong.
     """
+    limit = MAX_FILE_BYTES if limit is None else limit
     path = Path(path)
     shown = show(str(path))  # cut to 60 characters: a hostile path cannot flood the terminal
     try:
@@ -94,12 +95,12 @@ def read_bounded(path, what: str) -> bytes:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
             raise CamFileError(f"{what} {shown} should be a regular file")
-        if info.st_size > MAX_FILE_BYTES:
+        if info.st_size > limit:
             raise CamFileError(f"{what} {shown}: {info.st_size} bytes should be at most "
-                               f"{MAX_FILE_BYTES}")
+                               f"{limit}")
         chunks, size = [], 0
-        while size <= MAX_FILE_BYTES:
-            chunk = os.read(fd, MAX_FILE_BYTES + 1 - size)
+        while size <= limit:
+            chunk = os.read(fd, limit + 1 - size)
             if not chunk:
                 break
             chunks.append(chunk)
@@ -111,8 +112,8 @@ def read_bounded(path, what: str) -> bytes:
         raise CamFileError(f"{what} {shown} cannot be read: {exc.strerror or exc}") from None
     finally:
         os.close(fd)
-    if size > MAX_FILE_BYTES:  # the file grew while we read it (or /proc reports no size)
-        raise CamFileError(f"{what} {shown}: more than {MAX_FILE_BYTES} bytes")
+    if size > limit:  # the file grew while we read it (or /proc reports no size)
+        raise CamFileError(f"{what} {shown}: more than {limit} bytes")
     return b"".join(chunks)
 
 

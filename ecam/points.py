@@ -23,14 +23,13 @@ and what was expected.
 
 from __future__ import annotations
 
-import os
 import re
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .camfile import read_bounded
 from .errors import InputError
 from .export.certify import Hermite
 from .validate import show
@@ -119,31 +118,8 @@ def read_points(path) -> PointTable:
     """
     path = Path(path)
     shown = show(str(path))
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except FileNotFoundError:
-        raise InputError(f"points {shown} does not exist") from None
-    except OSError as exc:
-        raise InputError(f"points {shown} cannot be read: {exc.strerror or exc}") from None
-    except ValueError:
-        raise InputError(f"points {shown} should be a path without NUL characters") from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise InputError(f"points {shown} should be a regular file")
-        if info.st_size > MAX_POINTS_BYTES:
-            raise InputError(f"points {shown}: {info.st_size} bytes should be at most {MAX_POINTS_BYTES}")
-        handle = os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
-    with handle:
-        try:
-            data = handle.read(MAX_POINTS_BYTES + 1)
-        except OSError as exc:
-            raise InputError(f"points {shown} cannot be read: {exc.strerror or exc}") from None
-    if len(data) > MAX_POINTS_BYTES:
-        raise InputError(f"points {shown}: more than {MAX_POINTS_BYTES} bytes")
+    # camfile's bounded, non-blocking read (CamFileError is an InputError): one reader of users' files
+    data = read_bounded(path, "points", MAX_POINTS_BYTES)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

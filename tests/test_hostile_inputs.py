@@ -105,8 +105,10 @@ def test_a_regular_file_with_nothing_to_read_now_is_refused_not_waited_on(tmp_pa
 
 
 @pytest.mark.skipif(not os.access("/proc/kmsg", os.R_OK), reason="/proc/kmsg is not readable here")
-def test_check_proc_kmsg_is_one_line():
-    run_ = subprocess.run([sys.executable, "-m", "ecam.app", "check", "/proc/kmsg"], capture_output=True,
+@pytest.mark.parametrize("command", ["check", "fit"])
+def test_check_proc_kmsg_is_one_line(command):
+    """Both readers of a user's file (a cam file, a point table) read it the one bounded way."""
+    run_ = subprocess.run([sys.executable, "-m", "ecam.app", command, "/proc/kmsg"], capture_output=True,
                           text=True, timeout=60)
     assert run_.returncode == 2 and len(run_.stderr.splitlines()) == 1, run_.stderr
     assert "Traceback" not in run_.stderr

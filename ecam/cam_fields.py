@@ -89,6 +89,14 @@ CAM_FIELDS: tuple[Field, ...] = (
           unit="counts / slave unit", default=DEFAULT_COUNTS_PER_UNIT, minimum=MIN_COUNTS_PER_UNIT,
           maximum=MAX_COUNTS_PER_UNIT, limits="every table position inside int32", source=_SPEC),
 
+    Field("table", "horner_bits", "integer", "The word width of the expanded form's Horner values "
+          "(firmware_tables/FORMAT.md, \"Expanded form\"): 64, the finest fixed-point format int64 "
+          "allows; 32, the finest whose `ecam_poly_init` expansion keeps every Horner value in 32-bit "
+          "words, so that 32-bit cores (Cortex-M4) run its narrow kernels, one 32x32 multiply per "
+          "degree, at fewer work bits (the certificate prices them; the cost grows with the stroke "
+          "in counts). The blob's format is the same either way.", unit="bits", default=64,
+          minimum=32, maximum=64, limits="32 or 64 only", source=_SPEC),
+
     Field("segment", "name", "string", "A name for reports and plots.", default="", source=_PARSER),
     Field("segment", "law", "choice", "The motion law (`ecam laws`), a dwell, a polynomial solved "
           "from boundary conditions (poly5, poly7), or a spline (knots and derivatives, as `ecam fit` "

@@ -24,7 +24,7 @@ from .profile import (BOUNDARY_KEYS, TABLE_KEYS, CamProfile, Segment, check_mast
 from .spline import spline_law
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .tappet import DIRECTIONS, TAPPET_KEYS, TappetTrack
-from .table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
+from .table_spec import HORNER_BITS, MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
 
 __all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_toml", "show"]
@@ -367,4 +367,8 @@ def _table(top: Fields, slave_unit: str) -> dict:
         with t.calling(lambda field: field):
             parse_tolerance(t.get("tolerance"), t.name("tolerance"), slave_unit)
         out["tolerance"] = t.get("tolerance")
+    if "horner_bits" in t:
+        out["horner_bits"] = t.integer("horner_bits", minimum=min(HORNER_BITS), maximum=max(HORNER_BITS))
+        if out["horner_bits"] not in HORNER_BITS:
+            raise t.error(str(validate.fail(t.name("horner_bits"), out["horner_bits"], "64 or 32")))
     return out

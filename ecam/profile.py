@@ -993,7 +993,7 @@ def _linspace_rows(start: np.ndarray, stop: np.ndarray, num: int) -> np.ndarray:
 
 
 # The settings of a cam file's [table] (ecam.table_spec.TableSpec checks their values).
-TABLE_KEYS = ("interp", "master_counts", "points", "slave_counts_per_unit", "tolerance")
+TABLE_KEYS = ("horner_bits", "interp", "master_counts", "points", "slave_counts_per_unit", "tolerance")
 # TOML basic strings: these characters are escaped, every other control character as \uXXXX.
 _TOML_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
 

@@ -13,7 +13,7 @@ import ecam.validate as validate  # the module, not the package: no edge to ecam
 from .errors import InputError
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 
-__all__ = ["TableSpec", "parse_tolerance", "MAX_POINTS", "MIN_COUNTS_PER_UNIT", "MAX_COUNTS_PER_UNIT"]
+__all__ = ["TableSpec", "parse_tolerance", "HORNER_BITS", "MAX_POINTS", "MIN_COUNTS_PER_UNIT", "MAX_COUNTS_PER_UNIT"]
 
 MAX_POINTS = 2**22 + 1
 # Counts per slave unit: below a micro-count per unit no table position is meaningful; above 1e12

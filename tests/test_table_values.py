@@ -149,3 +149,23 @@ def test_ecam_compile_takes_horner_bits(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "ecam.app", "compile", cam, "--horner-bits", "16", "-o", str(tmp_path)],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.startswith("ecam: error:") and "--horner-bits" in bad.stderr
+
+
+def test_a_cam_files_table_sets_horner_bits():
+    """``horner_bits`` in a cam file's ``[table]`` chooses the 32-bit format; an explicit setting
+    wins; any width but 64 and 32 is refused, naming the field."""
+    from ecam.camfile import parse_cam
+    from ecam.errors import CamFileError
+    from ecam.table import narrow_horner
+
+    cam = {"master_period": 360.0, "table": {"interp": "quintic", "points": 61, "master_counts": 36000,
+                                             "horner_bits": 32},
+           "segment": [{"law": "cycloidal", "span": 180.0, "stroke": 10.0},
+                       {"law": "cycloidal", "span": 180.0, "stroke": -10.0}]}
+    profile = parse_cam(cam, source="cam.toml")
+    assert narrow_horner(ecam.compile_table(profile))
+    assert not narrow_horner(ecam.compile_table(profile, horner_bits=64))
+    assert "horner_bits = 32" in profile.to_toml()
+    cam["table"]["horner_bits"] = 48
+    with pytest.raises(CamFileError, match=r"table\.horner_bits: 48 should be 64 or 32"):
+        parse_cam(cam, source="cam.toml")

@@ -268,3 +268,23 @@ def test_junit_has_a_testcase_per_machine_and_axis_check(pair_file, tmp_path):
     assert names[:2] == ["bus_load", "faults"]
     assert "screw.tracking_error" in names and "lifter.loop_stability" in names
     assert len(names) == 2 + sum(len(a.checks) for a in run_machine(pair_file, path="fast").axes)
+
+
+def test_find_max_speed_names_the_limiting_station(tmp_path):
+    """Two like axes, the lifter's motor clamped at half the screw's torque: the lifter's
+    torque limits the machine, the search says so (station and check), and the speed found
+    passes over CANopen while the failing one fails on that station's check."""
+    from hil_sim.rig.machine_search import find_machine_max_speed
+    text = machine_text(PAIR)
+    head, lifter = text.rsplit("[[axis]]", 1)
+    path = tmp_path / "weak.toml"
+    path.write_text(head + "[[axis]]" + lifter.replace("motor_torque_limit = 6.0",
+                                                       "motor_torque_limit = 3.0"))
+    result = find_machine_max_speed(path, tolerance=0.1)  # a coarse search: a short test
+    assert result["limiting_station"] == "lifter"
+    assert result["confirmed"] and result["speed"] < result["failing_speed"]
+    assert all(name.startswith("lifter.") for name in result["failed_checks"])
+    assert result["limiting_check"].startswith("FAIL  lifter.")
+    assert result["periods_per_minute"] == pytest.approx(60.0 * result["speed"] / 360.0)
+    last = result["runs"][-1]
+    assert last["path"] == "canopen" and last["passed"] and last["speed"] == result["speed"]

@@ -105,8 +105,9 @@ def add_sim_arguments(parser: argparse.ArgumentParser, several: bool = True) -> 
     parser.add_argument("--plot", metavar="FILE.png",
                         help="save tracking error, coupling torque and following error plots")
     parser.add_argument("--find-max-speed", action="store_true",
-                        help="also search the highest master speed that passes (a progress line "
-                             "per trial on stderr)")
+                        help="also search the highest master speed that passes (a machine: "
+                             "and the station and check that limit it; a progress line per "
+                             "trial on stderr) [off]")
     parser.add_argument("--fidelity", choices=FIDELITIES,
                         help="which effects to model: auto (measured; the scene's default), full "
                              "(every effect), ideal (none)")

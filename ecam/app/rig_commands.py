@@ -79,7 +79,7 @@ def sim_command(args: argparse.Namespace) -> int:
             argparse.Namespace(**{**vars(args), "scene": path}), machine,
             lambda report, seconds: _write_reports(args, [(Path(path), report, seconds)],
                                                    sys.stderr if args.json else sys.stdout,
-                                                   inputs))
+                                                   inputs), format_search)
     scene = machine.axes[0]
     inputs = [path] + ([scene.cam.file] if scene.cam.file else [])
     _check_outputs(args, inputs)  # before the run: never over the scene or its cam
@@ -131,6 +131,9 @@ def format_search(search: dict) -> str:
     if search["failing_speed"] is not None:
         kind = search.get("limiting_kind")
         whose = WHOSE.get(kind, "")
+        if "limiting_station" in search:  # a machine's: which station, or the machine itself
+            station = search["limiting_station"]
+            whose = (f"station {station}, " if station else "the machine's own check, ") + whose
         lines.append(f"  limited by: at {search['failing_speed']:.6g} {unit} {whose}"
                      f"{search['limiting_check'] or ', '.join(search['failed_checks'])}")
     else:

@@ -17,7 +17,7 @@ from hil_sim.report import Check, check
 from hil_sim.rig.run import PATHS, ready_axis, report_axis, run_axes
 
 
-def run_machine(machine, *, path: str = "canopen") -> MachineReport:
+def run_machine(machine, *, path: str = "canopen", tunings=None) -> MachineReport:
     """Run a machine on the rig and return its report.
 
     Parameters
@@ -26,6 +26,9 @@ def run_machine(machine, *, path: str = "canopen") -> MachineReport:
         A machine, or the path of a machine file (:func:`hil_sim.machine.load_machine`).
     path : {"canopen", "fast"}
         On one virtual CANopen network (the default), or bus-free.
+    tunings : list of hil_sim.tuning.Tuning, optional
+        Each axis's commissioning, when already known (a search's trials at other master
+        speeds of the same machine); None: each axis is commissioned.
 
     Returns
     -------
@@ -41,7 +44,8 @@ def run_machine(machine, *, path: str = "canopen") -> MachineReport:
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
     wall_start = time.perf_counter()
-    axes = [ready_axis(scene) for scene in machine.axes]
+    tunings = [None] * len(machine.axes) if tunings is None else tunings
+    axes = [ready_axis(scene, tuning) for scene, tuning in zip(machine.axes, tunings)]
     counts = {axis.run.scene.name: axis.run.plan.cycles for axis in axes}
     if len(set(counts.values())) > 1:
         raise InputError("duration: " + ", ".join(f"{n} cycles for axis {name}"

@@ -61,6 +61,41 @@ class TrialTooLong(InputError):
     """A speed so slow that its trial would run longer than :data:`MAX_TRIAL_CYCLES`."""
 
 
+class SceneTrials:
+    """What the search varies and runs for a scene: the scene at a speed, commissioned once (a
+    machine's trials are :class:`hil_sim.rig.machine_search.MachineTrials`, the same search)."""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+
+    def profile(self):
+        """The cam profile whose master unit and period the speed is given in."""
+        return self.scene.cam.load_profile()
+
+    def start_speed(self, profile) -> float:
+        """The scene's own master speed [master units/s]."""
+        return self.scene.master.units_per_second(profile.master_period)
+
+    def commission(self):
+        return commission(self.scene)
+
+    def run(self, speed: float, path: str, tuning):
+        """The trial at ``speed``: bus-free with every effect on (ideal stays ideal), over
+        CANopen with the scene's own fidelity."""
+        candidate = trial_scene(self.scene, speed)
+        if path == "fast":
+            candidate = candidate.with_fidelity("ideal" if self.scene.fidelity == "ideal"
+                                                else "full")
+        return run_scene(candidate, path=path, tuning=tuning)
+
+    def simulated_s(self, report) -> float:
+        return report.summary["simulated_s"]
+
+    def limiting(self, check) -> dict:
+        """Whose limit the limiting check is: the machine's (mechanics) or the drive's."""
+        return {"limiting_kind": verdict_kind(check.name)}
+
+
 def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progress=None) -> dict:
     """Highest master speed at which every check passes.
 
@@ -98,27 +133,33 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    return search_speed(SceneTrials(scene), tolerance=tolerance, max_runs=max_runs,
+                        progress=progress)
+
+
+def search_speed(trials, *, tolerance: float = 0.01, max_runs: int = 40, progress=None) -> dict:
+    """:func:`find_max_speed` of whatever ``trials`` runs (:class:`SceneTrials`, or a machine's
+    :class:`hil_sim.rig.machine_search.MachineTrials`): ``profile()``, ``start_speed(profile)``,
+    ``commission()``, ``run(speed, path, tuning)`` (a report with ``passed``, ``failed``,
+    ``checks``, ``check(name)``), ``simulated_s(report)`` and ``limiting(check)`` (the result's
+    keys naming whose limit the limiting check is)."""
     tolerance = number("tolerance", tolerance, minimum=0.0, strict=True)
     if tolerance >= 1.0:
         raise fail("tolerance", tolerance, "< 1 (a share of the passing speed)")
     max_runs = integer("max_runs", max_runs, minimum=4, maximum=10_000)
-    profile = scene.cam.load_profile()
+    profile = trials.profile()
     unit = profile.master_unit
-    start = scene.master.units_per_second(profile.master_period)
+    start = trials.start_speed(profile)
     sign = math.copysign(1.0, start)
-    search_fidelity = "ideal" if scene.fidelity == "ideal" else "full"
     # commissioned once, on the full model, as a machine is: every trial runs the same drive
-    tuning = commission(scene)
+    tuning = trials.commission()
     runs: list[dict] = []
     reports: dict = {}
 
     def trial(speed: float, path: str = "fast"):
         """Run the scene at ``speed``; record the run; return its report (None: not runnable)."""
         try:
-            candidate = trial_scene(scene, sign * speed)
-            if path == "fast":
-                candidate = candidate.with_fidelity(search_fidelity)
-            report = run_scene(candidate, path=path, tuning=tuning)
+            report = trials.run(sign * speed, path, tuning)
         except TrialTooLong:
             raise
         except EcamError as exc:  # an infeasible trial: a failed speed, and why
@@ -184,7 +225,7 @@ def find_max_speed(scene, *, tolerance: float = 0.01, max_runs: int = 40, progre
             if low <= 0.0:
                 low = None
                 break
-    return _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, reports)
+    return _result(trials, profile, sign, low, high, confirmed, resolution, why, runs, reports)
 
 
 def _tell(progress, runs: list, unit: str, what: str) -> None:
@@ -304,7 +345,7 @@ def _narrowed(low: float, high: float, samples: list) -> tuple[float, float]:
     return max(passes, default=low), first_fail
 
 
-def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, reports) -> dict:
+def _result(trials, profile, sign, low, high, confirmed, resolution, why, runs, reports) -> dict:
     unit = profile.master_unit
     failed_report = reports.get((high, "fast")) if high is not None else None
     limiting = _limiting(failed_report) if failed_report is not None else None
@@ -315,8 +356,8 @@ def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, r
     trial_seconds = None
     if low is not None:
         canopen = reports.get((low, "canopen"))
-        trial_seconds = canopen.summary["simulated_s"] if canopen is not None else None
-    return {
+        trial_seconds = trials.simulated_s(canopen) if canopen is not None else None
+    out = {
         "speed": speed, "unit": f"{unit}/s",
         "periods_per_minute": None if speed is None else 60.0 * speed / profile.master_period,
         "failing_speed": None if high is None else sign * high,
@@ -324,9 +365,11 @@ def _result(scene, profile, sign, low, high, confirmed, resolution, why, runs, r
         # a speed at which the scene could not run at all is limited by why, in its words
         "limiting_check": (limiting.line() if limiting is not None else
                            f"cannot run: {failing_run['reason']}" if "reason" in failing_run else None),
-        # whose limit it is: the machine's (mechanics) or the drive's (tuning, stability)
-        "limiting_kind": verdict_kind(limiting.name) if limiting is not None else None,
+        "limiting_kind": None,
         "resolution": resolution, "resolution_reason": why,
         "periods_at_cruise": PERIODS_AT_CRUISE, "trial_seconds": trial_seconds,
         "confirmed": confirmed, "runs": runs,
     }
+    if limiting is not None:  # whose limit it is: the machine's (mechanics) or the drive's
+        out.update(trials.limiting(limiting))
+    return out

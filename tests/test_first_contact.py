@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import ecam
+from ecam.errors import InputError
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -275,3 +276,66 @@ def test_the_html_page_speaks_of_changes_proofs_and_harmonics_in_words():
     assert "largest_difference" not in page
     table = html_report._kv_table({"torsional_harmonic": 227.802})
     assert "227.802 x the cam cycle frequency" in table and "torsional mode" in table
+
+
+def test_the_html_page_shows_no_absolute_paths(tmp_path, monkeypatch):
+    """Issue 26, item 5: the page showed the scene's and its cam's site-packages paths. A shipped
+    scene reads from the package on, a file in the working directory as typed, one elsewhere by its
+    name; error messages and tracebacks lose the same prefixes."""
+    import html
+
+    from ecam.app import shown_paths
+    from ecam.app.html_report import _scene_as_run, html_report
+
+    monkeypatch.chdir(tmp_path)
+    shipped = _scene_as_run(SCENES / "stiff_coupling.toml")
+    assert "Scene file: <code>hil_sim/scenes/stiff_coupling.toml</code>" in shipped
+    assert "firmware_tables/cams/combination_drrd.toml" in shipped and str(ROOT) not in shipped
+    (tmp_path / "line").mkdir()
+    broken = tmp_path / "line" / "knife.toml"
+    broken.write_text('name = "knife"\n[cam]\nfile = "missing.toml"\n')
+    error = InputError(f"cam.file: {tmp_path / 'line' / 'missing.toml'} should be a readable cam file")
+    error.details = f'  File "{shown_paths.INSTALL_ROOT / "hil_sim" / "scene.py"}", line 1, in load_scene'
+    page = html.unescape(html_report([(broken, error, 0.0)]))
+    assert str(tmp_path) not in page and str(shown_paths.INSTALL_ROOT) not in page
+    assert "Scene file: <code>line/knife.toml</code>" in page
+    assert "cam.file: line/missing.toml should be" in page and 'File "hil_sim/scene.py"' in page
+    assert shown_paths.shown_path("/elsewhere/scenes/knife.toml") == "knife.toml"
+    assert shown_paths.shown_path("scenes/../knife.toml") == "scenes/../knife.toml"  # as typed
+
+
+def _turret(law: str):
+    """An 8-station turret's index: dwell 15 deg, rise 45 mm over 90 deg, dwell 15, return over
+    240; joints at 15, 105 and 120 deg, which 131072 counts per 360 deg put between counts."""
+    from ecam.profile import CamProfile, Segment
+
+    return CamProfile.from_segments([Segment.from_span(15.0), Segment.from_span(90.0, 45.0, law),
+                                     Segment.from_span(15.0), Segment.from_span(240.0, -45.0, law)],
+                                    name="turret8", master_unit="deg", slave_unit="mm")
+
+
+def test_codesys_writes_a_joint_at_its_real_x():
+    """Issue 26, item 5: ``dX := 120.00091552734375`` (the count 43691 of 131072) for the joint at
+    120 deg, whose dY then missed the dwell's 45 mm. dX is an LREAL: the joint itself is a point."""
+    from ecam.export import export_cam
+
+    exported = export_cam(_turret("cycloidal"), "codesys", tolerance="2 counts", master_counts=131072)
+    rows = exported.content
+    for x, y in (("15.0", "0.0"), ("105.0", "45.0"), ("120.0", "45.0")):
+        # a cycloid meets a dwell with velocity and acceleration 0 (its s'(0) = s''(0) = 0)
+        assert f"(dX := {x}, dY := {y}, dV := 0.0, dA := 0.0)" in rows, x
+    assert "120.0009" not in rows and exported.certificate.predicted_error_units <= 0.002
+    csv = export_cam(_turret("cycloidal"), "csv", interp="quintic", tolerance="2 counts", master_counts=131072)
+    assert "\n120.0,45.0,0.0,0.0\n" in csv.content
+
+
+def test_codesys_says_why_a_joint_where_the_acceleration_jumps_stays_on_a_count():
+    """A harmonic rise starts with acceleration pi^2/2 x stroke/span^2 against the dwell's 0: one
+    XYVA point at the joint holds one dA, wrong for one side's whole interval, so the points stay on
+    the counts either side of it and the export says so."""
+    from ecam.export import export_cam
+
+    exported = export_cam(_turret("harmonic"), "codesys", tolerance="2 counts", master_counts=131072)
+    assert any(note.startswith("the joints at 15, 105, 120 deg are points on whole master counts (131072 per "
+                               "period), beside the joint") for note in exported.notes), exported.notes
+    assert exported.certificate.predicted_error_units <= 0.002

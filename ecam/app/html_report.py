@@ -23,6 +23,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import os
 import re
 from dataclasses import fields, is_dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ecam.app.multi import scene_labels
+from ecam.app.shown_paths import shown_path, shown_text
 from ecam.app.sizing_html import sizing_section
 from ecam.errors import EcamError
 
@@ -416,19 +418,27 @@ def _scene_as_run(scene, error: str = "") -> str:
         Path(scene) if isinstance(scene, (str, Path)) else None
     parts = []
     if path is not None and Path(path).is_file():
-        parts.append(f"<details open><summary>Scene file: <code>{_e(str(path))}</code></summary>"
+        parts.append(f"<details open><summary>Scene file: <code>{_e(shown_path(path))}</code></summary>"
                      f"{_toml_listing(Path(path), error)}</details>")
     elif path is not None:
-        parts.append(f'<p class="note">Scene file {_e(str(path))}: not found.</p>')
+        parts.append(f'<p class="note">Scene file {_e(shown_path(path))}: not found.</p>')
     if loaded is not None:
-        rows = "".join(f"<tr><td><code>{_e(k)}</code></td><td>{_e(_num(v))}</td></tr>"
+        rows = "".join(f"<tr><td><code>{_e(k)}</code></td><td>{_e(_field_value(v))}</td></tr>"
                        for k, v in _scene_fields(loaded))
         # Open when a Scene object was run: it may differ from its file (a test shortened it).
         shown = " open" if is_dataclass(scene) or not parts else ""
         parts.append(f"<details{shown}><summary>Scene as run: every field, defaults filled in"
                      f'</summary><table class="kv fields"><tbody>{rows}</tbody></table>'
                      "</details>")
-    return "".join(parts) or f'<p class="note">Scene {_e(scene)}: no file to show.</p>'
+    return "".join(parts) or f'<p class="note">Scene {_e(shown_text(scene))}: no file to show.</p>'
+
+
+def _field_value(value) -> str:
+    """A scene field's value as the page shows it: a path (the scene's own, its cam file) as
+    :func:`~ecam.app.shown_paths.shown_path` shows it, a number as :func:`_num` does."""
+    if isinstance(value, Path) or (isinstance(value, str) and os.path.isabs(value)):
+        return shown_path(value)
+    return _num(value)
 
 
 def _plots(report) -> str:
@@ -474,12 +484,12 @@ def _scene_section(label: str, scene, report, seconds: float, timing: bool) -> s
     anchor = _anchor(label)
     if isinstance(report, BaseException):
         details = getattr(report, "details", "")
-        trace = (f"<details><summary>Traceback</summary><pre>{_e(details)}</pre></details>"
+        trace = (f"<details><summary>Traceback</summary><pre>{_e(shown_text(details))}</pre></details>"
                  if details else "")
         return (f'<section class="scene" id="{anchor}"><h2><span class="badge error">ERROR'
                 f"</span>{_e(label)}</h2><p class=\"desc\">This scene could not run "
                 f"({_e(type(report).__name__)}); the other scenes ran.</p>"
-                f'<div class="failed-lines mono">{_e(report)}</div>{trace}'
+                f'<div class="failed-lines mono">{_e(shown_text(report))}</div>{trace}'
                 + _scene_as_run(scene, str(report)) + "</section>")
     data = report.to_dict()
     state = "pass" if report.passed else "fail"
@@ -546,7 +556,7 @@ def _overview(labels, results, timing: bool) -> str:
         if isinstance(report, BaseException):
             rows.append(f'<tr class="fail"><td><span class="badge error">ERROR</span></td>'
                         f'<td>{link}</td><td>\u2013</td><td class="num">\u2013</td>'
-                        f'<td class="mono small">{_e(report)}</td>{wall}</tr>')
+                        f'<td class="mono small">{_e(shown_text(report))}</td>{wall}</tr>')
             continue
         state = "pass" if report.passed else "fail"
         rows.append(f'<tr class="{state}"><td><span class="badge {state}">{state.upper()}</span>'
@@ -596,7 +606,7 @@ def html_report(results, title: str = "ecam rig report", timing: bool = False) -
     for label, (_, report, _) in zip(labels, results):
         link = f'<a href="#{_anchor(label)}">{_e(label)}</a>'
         if isinstance(report, BaseException):
-            lines.append(f'<li><b>{link}</b> could not run: <span class="mono">{_e(report)}'
+            lines.append(f'<li><b>{link}</b> could not run: <span class="mono">{_e(shown_text(report))}'
                          "</span></li>")
         elif report.failed:
             checks_ = "".join(f'<li class="mono">{_e(c.line())}</li>' for c in report.failed)

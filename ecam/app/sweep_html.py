@@ -21,6 +21,7 @@ import html
 import io
 from pathlib import Path
 
+from ecam.app.shown_paths import shown_path, shown_text
 from ecam.atomic_files import write_files
 from ecam.errors import InputError
 
@@ -201,9 +202,9 @@ def sweep_html(summary: dict, rows: list) -> str:
     worst = summary["worst_sample"]
     if worst is not None:
         canopen = worst.get("canopen") or {}
-        again = ("" if not canopen else f"error: {_e(canopen['error'])}" if "error" in canopen else
+        again = ("" if not canopen else f"error: {_e(shown_text(canopen['error']))}" if "error" in canopen else
                  ("PASSED" if canopen["passed"] else "FAILED " + _e(", ".join(canopen["failed"])))
-                 + f" (report <code>{_e(canopen['report'])}</code>)")
+                 + f" (report <code>{_e(shown_path(canopen['report']))}</code>)")
         parts.append(f"<h2>Worst sample #{worst['index']}</h2><table>" + "".join(
             f"<tr><td><code>{_e(k)}</code></td><td class=num>{_num(v, 6)}</td></tr>"
             for k, v in worst["values"].items()) + "</table>"
@@ -211,7 +212,7 @@ def sweep_html(summary: dict, rows: list) -> str:
             f"; over CANopen: {again or 'not run'}</p>")
     if summary["error_samples"]:
         parts.append("<h2>Samples that could not run</h2><ul>" + "".join(
-            f"<li>#{e['index']}: {_e(e['error'])}</li>" for e in summary["error_samples"]) + "</ul>")
+            f"<li>#{e['index']}: {_e(shown_text(e['error']))}</li>" for e in summary["error_samples"]) + "</ul>")
     parts.append(f"<h2>Settings</h2><p>{_e(summary['method'])}, seed {summary['seed']}, tuning "
                  f"{_e(summary['tuning'])}, fidelity {_e(summary['fidelity'])}</p><table>"
                  "<tr><th>field</th><th>distribution</th><th>nominal</th></tr>" + "".join(

@@ -51,7 +51,7 @@ from .stretches import Stretches, settle
 __all__ = [
     "EXPORT_VERSION", "Cam", "Hermite", "Reading", "ExportCertificate", "VendorExport", "certify", "predicted",
     "greedy_knots", "equidistributed", "spread_knots", "place_local", "fewest", "knot_data", "positional",
-    "divisors", "unreachable", "table_counts",
+    "divisors", "unreachable", "table_counts", "joint_masters", "hermite_points",
 ]
 
 # max over tau of |f - p| = h^(n+1) max|f^(n+1)| * _SMOOTH[n] for the Hermite polynomial of degree n
@@ -776,6 +776,78 @@ def place_local(cam: Cam, degree: int, *, grid: int, tolerance, points, limit: i
         else:
             low = mid
     return spread_bound(high)[1]
+
+
+def joint_masters(cam: Cam, knots: np.ndarray, grid: int, values: int) -> tuple[np.ndarray, list[float]]:
+    """Master positions (user units) of knots on a grid of ``grid`` steps per period, with each joint
+    of the cam that the grid rounds to a knot put back where it is, when the ``values`` derivatives a
+    point carries (0 .. values - 1) are continuous there.
+
+    Placement works on whole master counts; a consumer that reads the master position as a real
+    number (CODESYS ``dX``, the CSV's master column) then gets the joint itself as a point
+    (``120.0``, not the count grid's ``120.00091552734375`` at 131072 counts per 360 deg), with the
+    cam's own values there: a dwell's end at the dwell's height and velocity 0. A joint is within
+    half a count of its knot, so the points stay in order; where two joints round to one knot, the
+    nearer one is placed.
+
+    A joint where a carried derivative jumps (a harmonic rise's acceleration against a dwell) stays
+    on its count: a point carries one value of each derivative, and at the joint either side's value
+    is wrong for the other side's whole interval, while a count beside the joint lies inside one side
+    (the placement puts a point on the count on the other side when the bound needs it). Returns
+    the positions and those joints (off the grid, not moved).
+    """
+    on_grid = np.asarray(knots, dtype=np.int64) * (cam.period / grid)
+    master = on_grid.copy()
+    where = {int(k): n for n, k in enumerate(np.asarray(knots).tolist())}
+    jumping = set(cam.breaks(values - 1))
+    kept = []
+    for x in cam.breaks(5):
+        n = where.get(int(round(x / cam.period * grid)))
+        if n is None or x == on_grid[n]:
+            continue
+        if x in jumping:
+            kept.append(x)
+        elif master[n] == on_grid[n] or abs(x - on_grid[n]) < abs(master[n] - on_grid[n]):
+            master[n] = x
+    return master, kept
+
+
+def hermite_points(cam: Cam, knots: np.ndarray, grid: int, degree: int, reading: str, tolerance):
+    """The rows a point-list consumer reads (master and the cam's derivatives ``0..(degree-1)/2``, as
+    the shortest decimals of their float64s), their master positions and their certificate, with the
+    joints at their real positions where :func:`joint_masters` puts them there.
+
+    Returns ``(rows, master, certificate, note)``; ``note`` (else ``""``) names the joints left on
+    whole master counts, and why. The placement's bound holds on the count grid: should moving the
+    joints take the bound over ``tolerance``, every point stays on the grid, and the note says so.
+    """
+    values = (degree + 1) // 2
+
+    def build(master):
+        data = knot_data(cam, master, values)
+        # The file holds the shortest decimal of each float64: the consumer reads the very same numbers.
+        rows = [[positional(v) for v in (x, *row)] for x, row in zip(master, data)]
+        hermite = Hermite.continuous(np.array([float(r[0]) for r in rows]), degree,
+                                     np.array([[float(v) for v in r[1:]] for r in rows]))
+        return rows, master, certify(cam, [Reading(reading, hermite)], tolerance)
+
+    munit, counts = cam.profile.master_unit, f"whole master counts ({grid} per period)"
+    on_grid = np.asarray(knots, dtype=np.int64) * (cam.period / grid)
+    real, kept = joint_masters(cam, knots, grid, values)
+    carried = ", ".join(("slave", "velocity", "acceleration")[:values])
+    note = (f"the joints at {', '.join(f'{x:.6g}' for x in kept)} {munit} are points on {counts}, beside "
+            f"the joint: a value a point carries ({carried}) jumps there, and a point holds one value of "
+            "each") if kept else ""
+    if np.array_equal(real, on_grid):
+        return (*build(on_grid), note)
+    built = build(real)
+    if tolerance is None or built[2].predicted_error_units <= tolerance:
+        return (*built, note)
+    moved = [float(x) for x, g in zip(real, on_grid) if x != g]
+    return (*build(on_grid),
+            f"the joints at {', '.join(f'{x:.6g}' for x in moved + kept)} {munit} are points on {counts}: at "
+            f"their real positions the predicted bound would be {built[2].predicted_error_units:.6g} "
+            f"{cam.profile.slave_unit}, above the tolerance")
 
 
 def spread_knots(cam: Cam, count: int, order: int, forced, grid: int, *, min_step: int = 1, **placement) -> np.ndarray:

@@ -37,10 +37,8 @@ cam starts at dY = 0. Both settings are named in the export's notes; the table i
 
 from __future__ import annotations
 
-import numpy as np
-
 from .certify import (
-    EXPORT_VERSION, Cam, Hermite, Reading, VendorExport, certify, content_crc, knot_data, place_local, positional,
+    EXPORT_VERSION, Cam, VendorExport, content_crc, hermite_points, place_local, positional,
 )
 from .escape import iec_comment
 from .codesys_tappets import tappet_count, tappet_declarations, tappet_header
@@ -61,16 +59,10 @@ def _comment(text: str) -> str:
 
 
 def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
-    grid = cam.master_counts  # points on whole master counts
+    grid = cam.master_counts  # placed on whole master counts; joints written at their real dX
     knots = place_local(cam, 5, grid=grid, tolerance=tolerance, points=points, limit=LIMIT,
                         what="codesys (XYVA)")
-    master = knots * (cam.period / grid)
-    data = knot_data(cam, master, 3)
-    # The file holds the shortest decimal of each float64: the controller reads the very same numbers.
-    text_rows = [[positional(v) for v in (x, *row)] for x, row in zip(master, data)]
-    hermite = Hermite.continuous(np.array([float(r[0]) for r in text_rows]), 5,
-                                 np.array([[float(v) for v in r[1:]] for r in text_rows]))
-    certificate = certify(cam, [Reading("XYVA quintic", hermite)], tolerance)
+    text_rows, master, certificate, placed = hermite_points(cam, knots, grid, 5, "XYVA quintic", tolerance)
 
     ident = identifier(name)
     body = [
@@ -104,8 +96,10 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     ]
     notes = [f"select the table with MC_CamTableSelect(CamTable := {ident}, "
              f"Periodic := {'TRUE' if cam.periodic else 'FALSE'})"]
+    if placed:
+        notes.append(placed)
     if cam.net_stroke:
-        start = float(data[0, 0])
+        start = float(text_rows[0][1])
         relative = ("MC_CamIn.StartMode := relative (MC_CamTableSelect.SlaveAbsolute := FALSE): each period adds "
                     "the slave position reached at the end of the previous one"
                     + ("" if start == 0.0 else f" -- this cam starts at dY = {start:.6g} {unit}, so relative mode "

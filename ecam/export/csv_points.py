@@ -16,12 +16,10 @@ one period apart; a net-stroke cam's last slave value is its first plus the net 
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..table import KINDS
 from .escape import csv_field, line_comment
 from .certify import (
-    EXPORT_VERSION, Cam, Hermite, Reading, VendorExport, certify, content_crc, knot_data, place_local, positional,
+    EXPORT_VERSION, Cam, VendorExport, content_crc, hermite_points, place_local, positional,
 )
 
 NAME = "csv"
@@ -44,15 +42,10 @@ RULE = {
 def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
     degree = DEGREE[interp]
     values = (degree + 1) // 2
-    grid = cam.master_counts
+    grid = cam.master_counts  # placed on whole master counts; joints written at their real master position
     knots = place_local(cam, degree, grid=grid, tolerance=tolerance, points=points, limit=LIMIT,
                         what=f"csv {interp}")
-    master = knots * (cam.period / grid)
-    data = knot_data(cam, master, values)
-    rows = [[positional(v) for v in (x, *row)] for x, row in zip(master, data)]
-    hermite = Hermite.continuous(np.array([float(r[0]) for r in rows]), degree,
-                                 np.array([[float(v) for v in r[1:]] for r in rows]))
-    certificate = certify(cam, [Reading(f"{interp} Hermite", hermite)], tolerance)
+    rows, master, certificate, placed = hermite_points(cam, knots, grid, degree, f"{interp} Hermite", tolerance)
 
     # the user's text: one field per column name (RFC 4180 quoting), the rest of a # line in comments
     unit, munit = line_comment(cam.profile.slave_unit), line_comment(cam.profile.master_unit)
@@ -71,7 +64,7 @@ def export(cam: Cam, *, tolerance, points, interp, name: str) -> VendorExport:
         f"{munit}; predicted bound {c.predicted_error_units:.6g} {unit}",
     ]
     content = "\n".join(header) + "\n" + body
-    notes = [f"interpolation {interp}: {RULE[interp]}"]
+    notes = [f"interpolation {interp}: {RULE[interp]}"] + ([placed] if placed else [])
     if cam.net_stroke:
         notes.append(f"net stroke {cam.net_stroke:+.6g} {unit} per period: the last row's slave is the first's plus "
                      f"the net stroke; a consumer repeating the table must add it every period")

@@ -27,7 +27,7 @@ from .tappet import DIRECTIONS, TAPPET_KEYS, TappetTrack
 from .table_spec import HORNER_BITS, MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
 from .validate import Fields, show
 
-__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_toml", "show"]
+__all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_tappets", "read_toml", "show"]
 
 # The built-in cams (the seeds'), shipped with the package: a link to firmware_tables/cams in a
 # checkout, a copy in an installed wheel.
@@ -208,7 +208,7 @@ def parse_cam(data: dict, source: str = "<cam>") -> CamProfile:
     segments = [_polynomial(entries, k, periodic) if isinstance(entry, tuple) else entry
                 for k, entry in enumerate(entries)]
     net_stroke = top.number("net_stroke")  # checked against the strokes by CamProfile
-    tappets = _tappets(top)
+    tappets = read_tappets(top)
     with top.calling(_file_name):
         return CamProfile(segments, period, periodic, name=top.get("name", Path(source).stem),
                           master_unit=top.get("master_unit", "deg"), slave_unit=slave_unit, table=table,
@@ -324,9 +324,9 @@ def _polynomial(entries: list, k: int, periodic: bool) -> Segment:
         return Segment.polynomial(*placement, degree=degree, name=r.text("name", default=""), **conditions)
 
 
-def _tappets(top: Fields) -> tuple:
+def read_tappets(top: Fields) -> tuple:
     """The ``[[tappet]]`` tables: digital cam switches (:mod:`ecam.tappet`); their range against
-    the master period is checked by CamProfile."""
+    the master period is checked by CamProfile (a scene's, by the rig against its cam)."""
     raw = top.get("tappet")
     if raw is None:
         return ()

@@ -100,7 +100,7 @@ import os
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
-from ecam.camfile import CAMS_DIR, load_cam, read_toml
+from ecam.camfile import CAMS_DIR, load_cam, read_tappets, read_toml
 from ecam.errors import CamFileError
 from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
@@ -110,6 +110,7 @@ from ecam.validate import MAX_DESCRIPTION_CHARS, Fields, choice, fail, number, s
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
+from hil_sim.event_spec import parse_events
 from hil_sim.faults import FRAME_KINDS, Faults
 from hil_sim.filters import check_notch_hz
 from hil_sim.sizing_spec import DRIVE_SIZING_KEYS, GEARHEAD_KEYS, SizingSpec, parse_sizing
@@ -292,6 +293,7 @@ class LimitsSpec:
     gain_margin_db: float = 6.0
     sensitivity_peak: float = 2.0
     inertia_ratio: float | None = None
+    tappet_error: float | None = None
 
 
 @dataclass(frozen=True)
@@ -359,6 +361,8 @@ class Scene:
     fidelity: str = "auto"
     sizing: SizingSpec = field(default_factory=SizingSpec)
     phase: float = 0.0
+    events: tuple = ()
+    tappets: tuple = ()
 
     def with_master_speed(self, speed: float) -> "Scene":
         """The same scene at another master speed [master units/s]."""
@@ -441,7 +445,7 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
                                               "limits", "duration", "sweep",
-                                              "motor"})
+                                              "motor", "event", "tappet"})
     # [sweep] describes a robustness sweep over this scene (hil_sim.sweep_spec, ecam sweep);
     # a run of the scene itself ignores it.
     name = top.text("name", default=Path(source).stem)
@@ -452,10 +456,14 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     cam_spec = _cam(top, base, cam)
     drive = _drive(top)
     sizing = parse_sizing(top)
+    # [[event]]: cams switched, phase shifts, cam-out while the machine runs (hil_sim.events);
+    # [[tappet]]: digital cam switches on the master, their edges checked (hil_sim.tappet_edges)
+    events = parse_events(top, lambda raw, written: _cam_file(raw, written, base, "cam"))
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
                  cam=cam_spec, drive=drive, mechanics=_mechanics(top, sizing),
                  bus=_bus(top), limits=_limits(top), duration=_duration(top, drive.cycle_s),
-                 description=description, fidelity=fidelity, sizing=sizing)
+                 description=description, fidelity=fidelity, sizing=sizing, events=events,
+                 tappets=read_tappets(top))
 
 
 def _master(top: Fields) -> MasterSpec:
@@ -517,9 +525,10 @@ def _cam(top: Fields, base: Path, profile: CamProfile | None = None) -> CamSpec:
                                          maximum=MAX_COUNTS_PER_UNIT))
 
 
-def _cam_file(raw: Fields, written: str, base: Path) -> Path:
-    """The cam file a scene names, resolved relative to the scene (or a built-in cam)."""
-    name = raw.name("file")
+def _cam_file(raw: Fields, written: str, base: Path, key: str = "file") -> Path:
+    """The cam file a scene names (in ``key``), resolved relative to the scene (or a built-in
+    cam)."""
+    name = raw.name(key)
     try:
         file = (base / written).resolve()
         exists, regular = file.exists(), file.is_file()
@@ -658,7 +667,8 @@ def _limits(top: Fields) -> LimitsSpec:
         gain_margin_db=raw.number("gain_margin_db", default=6.0, minimum=0.0, maximum=60.0),
         sensitivity_peak=raw.number("sensitivity_peak", default=2.0, minimum=1.0,
                                     maximum=100.0, strict=True),
-        inertia_ratio=raw.number("inertia_ratio", minimum=0.0, strict=True))
+        inertia_ratio=raw.number("inertia_ratio", minimum=0.0, strict=True),
+        tappet_error=raw.number("tappet_error", minimum=0.0, strict=True))
 
 
 def _window(raw: Fields, key: str) -> tuple[float, float] | None:

@@ -9,6 +9,7 @@ that default comes from.
 
 from __future__ import annotations
 
+from ecam.cam_fields import CAM_FIELDS
 from ecam.field_table import REQUIRED, Field
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT
@@ -16,6 +17,7 @@ from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.effects import (DEFAULT_BACKLASH_ARCMIN, DEFAULT_CURRENT_LOOP_HZ, DEFAULT_ENCODER_COUNTS,
                              DEFAULT_LOAD_FRICTION_SHARE, DEFAULT_MOTOR_FRICTION_SHARE, FIDELITIES,
                              VELOCITY_FILTER_SHARE)
+from hil_sim.event_spec import ACTIONS, ACTIVATIONS, MAX_EVENT_POSITION, MAX_EVENTS, SCALING_RANGE
 from hil_sim.faults import FRAME_KINDS, MAX_SYNC_JITTER_S
 from hil_sim.scene import (CAM_MODES, EFFECT_RANGES, MAX_BANDWIDTH_HZ, MAX_CYCLES, MAX_LEAD_CYCLES,
                            MAX_MASTER_SPEED, MAX_SETTLE_S, MECHANICS_MINIMA, MECHANICS_RANGES, MIN_LOAD_INERTIA,
@@ -30,6 +32,65 @@ _START_STOP = (("master.profile", "start_stop"), ("master.max_acceleration", 100
 _CAM_IN = (("master.profile", "cam_in"), ("master.engage_at", 0.0), ("master.max_velocity", 1.0),
            ("master.slave_max_acceleration", 10.0), ("master.slave_max_jerk", 1000.0))
 _NOT_SPEED = (("master.speed", None),)
+_EVENTS = "hil_sim.events"
+_AT = (("event.at_s", None),)
+_SWITCH = (("event.action", "switch"), ("event.cam", "combination_drrd.toml"))
+_PHASE = (("event.action", "phase"), ("event.shift", 1.0), ("event.max_velocity", 1.0),
+          ("event.max_acceleration", 1.0), ("event.max_jerk", 1.0))
+_EVENT_FIELDS = (
+    Field("event", "name", "string", "A name for the report.", default="", source=_EVENTS),
+    Field("event", "action", "choice", "switch: a new cam; offset: the running cam with new offsets "
+          "and scaling; phase: a jerk-limited shift of the master the slave sees; cam_out: the "
+          "slave leaves the cam to a jerk-limited stop.", default=REQUIRED, choices=ACTIONS,
+          source=_EVENTS),
+    Field("event", "at_period", "integer", "When: at the start of this master period of the "
+          "scene's cam (master position N x period).", unit="periods",
+          default_text="give exactly one of at_period, at_position, at_s", minimum=0, maximum=2**31,
+          when=_AT, source=_EVENTS),
+    Field("event", "at_position", "number", "When: as the master axis reaches this position.",
+          unit="master units", default_text="give exactly one of at_period, at_position, at_s",
+          minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION, when=_AT, source=_EVENTS),
+    Field("event", "at_s", "number", "When: at this time of the run.", unit="s",
+          default_text="give exactly one of at_period, at_position, at_s", minimum=0.0, maximum=1e6,
+          source=_EVENTS),
+    Field("event", "cam", "string", "switch: the new cam file, relative to the scene (or a built-in "
+          "cam's name); same units as the scene's cam.", default=REQUIRED, when=_SWITCH,
+          source=_EVENTS),
+    Field("event", "activation", "choice", "switch, offset: when it takes effect: at once, at the "
+          "running cam's period end (CODESYS: the new cam placed at the end of the previous one) or "
+          "when the master reaches activation_position (TwinCAT MC_CamActivationMode).",
+          default="period_end", choices=ACTIVATIONS, source=_EVENTS),
+    Field("event", "activation_position", "number", "activation master_position: the master "
+          "position (as the slave sees it) where it takes effect.", unit="master units",
+          default=REQUIRED, minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION,
+          when=(("event.activation", "master_position"),), source=_EVENTS),
+    Field("event", "master", "choice", "switch, offset: the cam's master coordinate: absolute, or "
+          "relative to the master at the activation (PLCopen MasterAbsolute; ecam.cam_join).",
+          default="absolute", choices=("absolute", "relative"), source=_EVENTS),
+    Field("event", "slave", "choice", "switch, offset: absolute, or relative: the slave's position "
+          "at the activation is added (PLCopen SlaveAbsolute, MC_CamIn StartMode).",
+          default="absolute", choices=("absolute", "relative"), source=_EVENTS),
+    Field("event", "master_offset", "number", "switch, offset: MC_CamIn MasterOffset: the cam is "
+          "evaluated at X = master_scaling x master + master_offset.", unit="master units",
+          default=0.0, minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION, source=_EVENTS),
+    Field("event", "slave_offset", "number", "switch, offset: MC_CamIn SlaveOffset, added to the "
+          "slave.", unit="slave units", default=0.0, minimum=-MAX_EVENT_POSITION,
+          maximum=MAX_EVENT_POSITION, source=_EVENTS),
+    Field("event", "master_scaling", "number", "switch, offset: MC_CamIn MasterScaling.", default=1.0,
+          minimum=SCALING_RANGE[0], maximum=SCALING_RANGE[1], source=_EVENTS),
+    Field("event", "slave_scaling", "number", "switch, offset: MC_CamIn SlaveScaling.", default=1.0,
+          minimum=SCALING_RANGE[0], maximum=SCALING_RANGE[1], source=_EVENTS),
+    Field("event", "allow_jump", "boolean", "switch, offset: a jump at the activation is reported but "
+          "does not fail the switch_jumps check.", default=False, source=_EVENTS),
+    Field("event", "shift", "number", "phase: the shift of the master the slave sees (MC_Phasing "
+          "PhaseShift), added to the running one.", unit="master units", default=REQUIRED,
+          minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION, when=_PHASE, source=_EVENTS),
+    *(Field("event", key, "number", f"phase, cam_out: the {what} limit of the phase shift (master "
+            f"units) or of the slave's stop (slave units).", unit=f"units/s{power}", default=REQUIRED,
+            minimum=0.0, exclusive_minimum=True, maximum=1e15, when=_PHASE, source=_EVENTS)
+      for key, what, power in (("max_velocity", "velocity", ""), ("max_acceleration", "acceleration", "^2"),
+                               ("max_jerk", "jerk", "^3"))),
+)
 
 #: The tables of a scene file and what each holds, in the reference's order.
 SCENE_TABLES = {
@@ -48,6 +109,12 @@ SCENE_TABLES = {
              "(hil_sim/catalogue.toml) and/or its fields, SI units, rpm where the name says so.",
     "limits": "The limits of the report's checks.",
     "duration": "How long to run: exactly one of these.",
+    "event": "One `[[event]]` per change while the machine runs (hil_sim.events, docs/cam_changes.md): a "
+             "cam switched (PLCopen MC_CamTableSelect/MC_CamIn), offsets and scaling changed, a phase "
+             "shift (MC_Phasing) or the cam left (MC_CamOut); each at exactly one of at_period, "
+             "at_position, at_s.",
+    "tappet": "One `[[tappet]]` per digital cam switch on the master (ecam.tappet, as in a cam file); "
+              "the rig checks every edge against the programmed position (hil_sim.tappet_edges).",
 }
 
 _MECHANICS_TEXT = {
@@ -193,6 +260,10 @@ SCENE_FIELDS: tuple[Field, ...] = (
           default_text="no sweep", source="hil_sim.sweep_spec"),
     Field("", "motor", "table", "The `[motor]` table.", default_text="no motor: the sizing checks "
           "are reported without limits"),
+    Field("", "event", "array of tables", "The `[[event]]` entries below.", default_text="none",
+          limits=f"at most {MAX_EVENTS}"),
+    Field("", "tappet", "array of tables", "The `[[tappet]]` entries below (the cam file's own "
+          "tappets are checked too).", default_text="none"),
 
     Field("master", "speed", "number", "The cruise speed.", unit="master units/s",
           default_text="give exactly one of speed and speed_rpm", minimum=-MAX_MASTER_SPEED,
@@ -390,6 +461,11 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("limits", "inertia_ratio", "number", "The inertia_ratio check: largest load (reflected) "
           "over motor-side inertia.", default_text="reported without a limit", minimum=0.0,
           exclusive_minimum=True, source=_PARSER),
+    Field("limits", "tappet_error", "number", "The tappet_edges check: the largest distance of a "
+          "tappet edge (where the master is when the actuator acts, after its dead time = "
+          "-compensation) from its programmed position.", unit="master units",
+          default_text="reported without a limit", minimum=0.0, exclusive_minimum=True,
+          source="hil_sim.tappet_edges"),
     Field("limits", "settle_s", "number", "Left out of the tracking and following-error checks at "
           "the start.", unit="s", default=0.0, minimum=0.0, maximum=MAX_SETTLE_S, source=_PARSER),
 
@@ -404,4 +480,7 @@ SCENE_FIELDS: tuple[Field, ...] = (
           default_text="give exactly one", minimum=0.0, exclusive_minimum=True,
           limits=f"at most {MAX_CYCLES} cycles at drive.cycle_s", when=(("duration.master_periods", None),),
           source=_PARSER),
+
+    *_EVENT_FIELDS,
+    *(f for f in CAM_FIELDS if f.table == "tappet"),
 )

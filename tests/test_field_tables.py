@@ -27,6 +27,8 @@ BASE_SCENE = {
     "bus": {"faults": {}},
     "limits": {"tracking_error": 0.01},
     "duration": {"master_periods": 1.0},
+    "event": [{"action": "offset", "at_s": 0.0}],
+    "tappet": [{"on": 10.0, "off": 20.0}],
 }
 BASE_CAM = {
     "master_period": 360.0,
@@ -43,6 +45,12 @@ CHOICE_CONTEXT = {
                                    "master.slave_max_acceleration": 10.0,
                                    "master.slave_max_jerk": 1000.0},
     ("segment.law", "dwell"): {"segment.stroke": None},
+    ("event.action", "switch"): {"event.cam": "combination_drrd.toml"},
+    ("event.action", "phase"): {"event.shift": 1.0, "event.max_velocity": 1.0,
+                                "event.max_acceleration": 1.0, "event.max_jerk": 1.0},
+    ("event.action", "cam_out"): {"event.max_velocity": 1.0, "event.max_acceleration": 1.0,
+                                  "event.max_jerk": 1.0},
+    ("event.activation", "master_position"): {"event.activation_position": 0.0},
 }
 
 
@@ -64,7 +72,7 @@ def _table(data, dotted: str, create: bool = True) -> dict:
     """The mapping of a dotted table in ``data`` (``segment``: the first segment)."""
     node = data
     for part in filter(None, dotted.split(".")):
-        if part in ("segment", "tappet") and isinstance(node.get(part), list):
+        if part in ("segment", "tappet", "event") and isinstance(node.get(part), list):
             node = node[part][0]
         else:
             node = node.setdefault(part, {}) if create else node[part]

@@ -18,6 +18,7 @@ from hil_sim.rig.cam import cam_spectrum
 from hil_sim.rig.loop import Record
 from hil_sim.rig.plan import PreparedRun
 from hil_sim.rig.stability import loop_stability_check
+from hil_sim.rig.event_checks import event_checks
 from hil_sim.rig.sizing_checks import fill_coupling, sizing_checks
 
 
@@ -44,6 +45,8 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
         checks.append(loop_stability_check(run, setup, record))
     sized, sizing_summary, sizing_series = sizing_checks(run)  # motor, module, gearhead
     checks += sized
+    evented, event_summary, event_series = event_checks(run)  # [[event]], [[tappet]]
+    checks += evented
     fill_coupling(sizing_summary, checks)
     plan, period = run.plan, run.cam.profile.master_period
     series = {"time_s": (np.arange(record.cycles) + 1.0) * plan.cycle_s,
@@ -53,9 +56,11 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
               "peak_motor_torque": record.peak_motor_torque,
               "peak_twist": record.peak_twist,
               "following_error": record.following_error, **sizing_series}
+    series.update({name: values[:record.cycles] for name, values in event_series.items()})
     return Report(scene=run.scene.name, model=record.model, model_reason=record.model_reason,
                   cycles=record.cycles, checks=checks,
-                  summary={**summary(run, record), "sizing": sizing_summary}, series=series)
+                  summary={**summary(run, record), "sizing": sizing_summary, **event_summary},
+                  series=series)
 
 
 def _at_master(run: PreparedRun, cycle: int) -> str:

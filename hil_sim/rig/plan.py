@@ -24,6 +24,8 @@ from ecam.errors import InputError, SimulationError
 from ecam.mechanics import Mechanics
 from hil_sim.control import Gains
 from hil_sim.effects import EffectValues
+from hil_sim.events import apply_events
+from hil_sim.tappet_edges import tappet_edges
 from hil_sim.int32 import saturate_int32_array, wrap_int32_array
 from hil_sim.master import ConstantSpeed, StartStop, cam_in
 from hil_sim.rig.cam import CompiledCam
@@ -46,6 +48,8 @@ class Plan:
     start_units: float           # true master position at t = 0 [master units]
     sync_offsets: np.ndarray     # SYNC jitter of cycle k [s]
     engaged_from: int | None = None  # a cam-in: the first cycle whose set point is the cam's
+    events: object = None        # what the scene's [[event]]s did (hil_sim.events.EventOutcome)
+    tappets: tuple = ()          # the tappet tracks' edges (hil_sim.tappet_edges.TappetEdges)
 
 
 @dataclass(frozen=True)
@@ -162,13 +166,28 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
         approach = t_end < engage_s
         reference[approach] = slave_plan.position(t_end[approach]) / scale
         initial = int(round(spec.slave_start * scale))
+    outcome = None
+    if scene.events:  # switches, phase shifts, cam-out (hil_sim.events); none: the plan as it was
+        if slave_plan is not None:
+            raise InputError("event: a scene with master.profile 'cam_in' should have no "
+                             "[[event]] (engage with a switch event instead)")
+        if scene.cam_mode == "drive":
+            raise InputError("event: [[event]] with cam_mode 'drive' should be cam_mode "
+                             "'controller': the rig streams events as the controller's set points")
+        targets, velocities, reference, outcome = apply_events(
+            scene.events, cam, master, per_unit, t_set, t_end, np.asarray(targets, dtype=np.int64),
+            np.asarray(velocities, dtype=float), np.asarray(reference, dtype=float),
+            float(t_end[-1]) + cycle_s * max(spec.lead_cycles, 1))
+    tracks = tuple(profile.tappets) + tuple(scene.tappets)
+    edges = (tappet_edges(tracks, master, per_unit, period, table.master_counts, cycle_s, cycles)
+             if tracks else ())
     return Plan(cycles=cycles, cycle_s=cycle_s, master_end=master_end,
                 targets=np.asarray(targets, dtype=np.int64), velocities=np.asarray(velocities),
                 reference_units=np.asarray(reference, dtype=float),
                 master_units=np.asarray(master_true, dtype=float) / per_unit,
                 initial_counts=initial, speed_units=speed_units,
                 start_units=float(master.position(0.0)) / per_unit, sync_offsets=jitter,
-                engaged_from=engaged_from)
+                engaged_from=engaged_from, events=outcome, tappets=edges)
 
 
 def _master_motion(scene: Scene, cam: CompiledCam, speed: float, per_unit: float):
@@ -222,6 +241,9 @@ class _Shifted:
 
     def velocity(self, t):
         return self.master.velocity(t)
+
+    def acceleration(self, t):
+        return self.master.acceleration(t)
 
 
 def _check_engagement(spec, profile, speed_units: float) -> None:

@@ -1,0 +1,583 @@
+"""A scene's events: what the master and the drive see when cams change while the machine runs.
+
+A scene lists ``[[event]]`` tables; each happens at a master period number (``at_period``: the
+start of that period of the scene's cam, master position N x period), a master position
+(``at_position``) or a time (``at_s``), and does one ``action``. The PLCopen names (Technical
+Specification "Function Blocks for Motion Control", TC2, Version 2.0, 2011: the function
+blocks ``MC_CamTableSelect``, ``MC_CamIn``, ``MC_CamOut``, ``MC_Phasing``; the section numbers
+could not be checked against the published PDF, so the blocks are named, not numbered) and the
+vendors' documentation of those blocks:
+
+* ``switch``: a new cam (``MC_CamTableSelect`` + ``MC_CamIn`` on a coupled axis). Its activation
+  is ``immediate``, ``period_end`` (the running cam's period end: CODESYS places the new cam
+  "exactly at the end of the previous one", TwinCAT ``MC_CamActivationMode`` "next cam cycle")
+  or ``master_position`` (TwinCAT "at master axis position", ``activation_position``). Master and
+  slave are ``absolute`` or ``relative`` as PLCopen's ``MasterAbsolute`` / ``SlaveAbsolute``
+  define them (Beckhoff ``MC_StartMode``: "With StartModeRelativ the origin of the cam plate
+  coordinate system is at the axis position of the respective axis ... at the time of coupling
+  or cam plate switching"); the rule is :mod:`ecam.cam_join`'s. Offsets and scaling are
+  ``MC_CamIn``'s: the cam is evaluated at X = MasterScaling x master + MasterOffset (CODESYS
+  SoftMotion, "MC_CamIn.MasterOffset, MC_CamIn.MasterScaling") and the slave is SlaveScaling x
+  cam(X) + SlaveOffset (Beckhoff ``ST_CamScalingData``), plus, relative, the slave's position at
+  the switch.
+* ``offset``: the running cam with new offsets and scaling, activated like a switch.
+* ``phase``: ``MC_Phasing``: a jerk-limited shift of the master position the slave sees
+  ("MasterPos from the perspective of the SlaveAxis = PhysicalMasterPos + PhaseShift", SEW's
+  ``MC_PhasingRelative``), planned by ruckig from the running shift's state to ``shift`` more,
+  within ``max_velocity``, ``max_acceleration`` and ``max_jerk`` of the shift (master units/s^n:
+  Beckhoff, "the dynamics values refer to the change in the 'apparent' master position").
+* ``cam_out``: ``MC_CamOut``: the slave leaves the cam from its position, velocity and
+  acceleration to a stop, on ruckig's jerk-limited profile within the event's slave limits.
+
+Every switch (and offset) is reported with the jump it makes at its activation: position,
+velocity, acceleration and jerk of the running cam's left limit against the new one's right
+limit, per master unit (and per second at the master's speed there); a position, velocity or
+acceleration jump is an error of the report unless the event says ``allow_jump = true``, a jerk
+jump a warning, as :func:`ecam.cam_join.join_cams` judges a join.
+
+One module for both paths: :func:`apply_events` turns the events into the set points the
+controller streams (the plan's targets and velocity offsets) and the ideal slave path the report
+checks against; the bus-free path runs the same plan, so both see the same events.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from ruckig import ControlInterface
+
+import ecam
+from ecam.camfile import load_cam, read_bounded
+from ecam.errors import InputError, SimulationError
+from ecam.profile import ORDER_NAMES
+from ecam.table_spec import TableSpec
+from hil_sim.event_spec import Event
+from hil_sim.master import _Segment
+
+__all__ = ["EventOutcome", "Motion", "Switch", "apply_events"]
+
+# A jump is what exceeds float noise at the join, measured as ecam.cam_join measures it: relative
+# to the values there, and to what the two cams can produce in that derivative.
+_RELATIVE_NOISE = (1e-12, 1e-9, 1e-9, 1e-9)
+_SCALE_SAMPLES = 1024
+
+
+# ------------------------------------------------------------------------------ the report
+@dataclass(frozen=True)
+class Switch:
+    """A switch (or offset) as it happened: when, where, and what jumped.
+
+    Attributes
+    ----------
+    event : Event
+    requested_s, active_s : float
+        When it was requested and when it took effect [s]; ``active_s`` None: not reached
+        within the run.
+    master : float
+        The master position (as the slave sees it) at the activation [master units].
+    entry : float
+        Where the new cam is entered, in its own master coordinate [master units].
+    cam : str
+        The new cam's name.
+    left, right : tuple of float
+        The running cam's left limit and the new cam's right limit there: position, velocity,
+        acceleration, jerk per master unit^k [slave units].
+    jumps : tuple of (order, size)
+        The derivatives that jump (0..3) and by how much (right - left).
+    speed : float
+        The master's speed there [master units/s], to state the jumps per second.
+    """
+
+    event: Event
+    requested_s: float
+    active_s: float | None
+    master: float = math.nan
+    entry: float = math.nan
+    cam: str = ""
+    left: tuple = ()
+    right: tuple = ()
+    jumps: tuple = ()
+    speed: float = 0.0
+
+    @property
+    def errors(self) -> tuple:
+        """The jumps that are errors (position, velocity, acceleration)."""
+        return tuple((order, size) for order, size in self.jumps if order < 3)
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.errors) and not self.event.allow_jump
+
+    def jump_text(self, slave_unit: str = "", master_unit: str = "") -> str:
+        """The jumps in words: per master unit and per second."""
+        if not self.jumps:
+            return "no jump"
+        parts = []
+        for order, size in self.jumps:
+            per_s = size * self.speed**order
+            unit = slave_unit + (f"/{master_unit}" + (f"^{order}" if order > 1 else "") if order else "")
+            timed = (f" ({per_s:+.4g} {slave_unit}/s" + (f"^{order}" if order > 1 else "") + ")"
+                     if order else "")
+            parts.append(f"{ORDER_NAMES[order]} {size:+.4g} {unit}{timed}")
+        return ", ".join(parts)
+
+    def to_dict(self) -> dict:
+        return {"event": self.event.index, "name": self.event.name, "action": self.event.action,
+                "activation": self.event.activation, "cam": self.cam,
+                "requested_s": self.requested_s, "active_s": self.active_s,
+                "master": None if math.isnan(self.master) else self.master,
+                "entry": None if math.isnan(self.entry) else self.entry,
+                "master_coordinates": self.event.master, "slave_coordinates": self.event.slave,
+                "left": list(self.left), "right": list(self.right),
+                "jumps": {ORDER_NAMES[o]: s for o, s in self.jumps},
+                "allowed": self.event.allow_jump, "failed": self.failed}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A phase shift or a cam-out as planned: when, how long, and its peaks against its limits
+    (velocity, acceleration, jerk; the phase's in master units, the cam-out's in slave units)."""
+
+    event: Event
+    start_s: float
+    duration_s: float
+    peaks: tuple
+    limits: tuple
+    covered: float
+
+    @property
+    def ratio(self) -> float:
+        """The largest peak / limit."""
+        return max(p / lim for p, lim in zip(self.peaks, self.limits))
+
+    def to_dict(self) -> dict:
+        return {"event": self.event.index, "name": self.event.name, "action": self.event.action,
+                "start_s": self.start_s, "duration_s": self.duration_s,
+                "peaks": list(self.peaks), "limits": list(self.limits), "covered": self.covered}
+
+
+@dataclass(frozen=True)
+class EventOutcome:
+    """What the events did in a run: the switches with their jumps, the phase shifts and
+    cam-outs with their peaks, and the phase shift per cycle [master units] for the plots."""
+
+    switches: tuple = ()
+    motions: tuple = ()
+    phase: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        return {"switches": [s.to_dict() for s in self.switches],
+                "motions": [m.to_dict() for m in self.motions]}
+
+
+# ---------------------------------------------------------------------------- the program
+class _Piece:
+    """One cam as the slave runs it from ``start_s`` on: X = scaling (m - origin) + offset,
+    slave = base + offset + scaling cam(X) (a cam that does not repeat holds its ends)."""
+
+    def __init__(self, start_s, profile, table, origin, master_offset, master_scaling,
+                 base, slave_offset, slave_scaling, per_unit):
+        self.start_s = start_s
+        self.profile, self.table = profile, table
+        self.origin, self.master_offset, self.master_scaling = origin, master_offset, master_scaling
+        self.base, self.slave_offset, self.slave_scaling = base, slave_offset, slave_scaling
+        self.period = profile.master_period
+        # table master counts per (scene) master count: 1 for the scene's own table unscaled
+        self.table_per_unit = table.master_counts / self.period
+        self.ratio = master_scaling * self.table_per_unit / per_unit
+        self.identity = (self.ratio == 1.0 and origin == 0.0 and master_offset == 0.0
+                         and base == 0.0 and slave_offset == 0.0 and slave_scaling == 1.0)
+
+    def x(self, master):
+        return self.master_scaling * (master - self.origin) + self.master_offset
+
+    def state(self, master: float, side: str = "right") -> list:
+        """Slave position and derivatives 1..3 per master unit at ``master`` (one side)."""
+        x = self.x(master)
+        profile, period = self.profile, self.period
+        out = []
+        for order in range(len(ORDER_NAMES)):
+            if not profile.periodic and (x > period or x < 0.0 or (x == period and side == "right")
+                                         or (x == 0.0 and side == "left")):
+                value = float(profile(min(max(x, 0.0), period), 0)) if order == 0 else 0.0
+            elif profile.periodic and side == "left" and x % period == 0.0:
+                value = _left_of_seam(profile, x, order)
+            else:
+                value = float(profile(x, order, side=side))
+            scale = self.slave_scaling * self.master_scaling**order
+            out.append(scale * value + (self.base + self.slave_offset if order == 0 else 0.0))
+        return out
+
+
+def _left_of_seam(profile, x: float, order: int) -> float:
+    """A periodic cam's left limit at a multiple of its period: its last segment's end, and the
+    net strokes of the periods before."""
+    last = profile.segments[-1]
+    if order:
+        return last.at(1.0, order)
+    turns = round(x / profile.master_period)
+    return last.slave_end + (turns - 1) * (profile.net_stroke or 0.0)
+
+
+class _Phases:
+    """The phase shift superimposed on the master [master units], as planned so far."""
+
+    def __init__(self):
+        self.plans = []  # (start_s, segment)
+
+    def state(self, t: float) -> tuple:
+        for start, segment in reversed(self.plans):
+            if t >= start:
+                return segment.state(t - start)
+        return (0.0, 0.0, 0.0)
+
+    def sample(self, times: np.ndarray, order: int) -> np.ndarray:
+        out = np.zeros(len(times))
+        for i, (start, segment) in enumerate(self.plans):
+            end = self.plans[i + 1][0] if i + 1 < len(self.plans) else math.inf
+            inside = (times >= start) & (times < end)
+            if not inside.any():
+                continue
+            moving = inside & (times < start + segment.duration)
+            out[moving] = [segment.state(t - start)[order] for t in times[moving]]
+            out[inside & ~moving] = segment.state(segment.duration)[order]
+        return out
+
+
+class _Program:
+    """The master as the slave sees it (the master plus the phase shifts) and the cams."""
+
+    def __init__(self, master, per_unit: float, end_s: float):
+        self.master, self.per_unit, self.end_s = master, per_unit, end_s
+        self.phases = _Phases()
+        self.pieces = []
+        self.out = None  # (start_s, segment) of a cam-out
+
+    def master_at(self, t: float, order: int = 0) -> float:
+        """The master the slave sees at time t [master units (per s^order)]."""
+        raw = (self.master.position, self.master.velocity, self.master.acceleration)[order](t)
+        return float(raw) / self.per_unit + self.phases.state(t)[order]
+
+    def piece_at(self, t: float):
+        for piece in reversed(self.pieces):
+            if t >= piece.start_s:
+                return piece
+        return self.pieces[0]
+
+    def slave_state_s(self, t: float, side: str = "right") -> tuple:
+        """The slave's position, velocity and acceleration at time t [slave units, per s]."""
+        piece = self.piece_at(t)
+        m, v, a = (self.master_at(t, order) for order in range(3))
+        s = piece.state(m, side)
+        return s[0], s[1] * v, s[2] * v * v + s[1] * a
+
+    def time_of(self, master: float, after: float) -> float | None:
+        """The first time >= ``after`` the master the slave sees reaches ``master`` (None: not
+        within the run); the master moves forward."""
+        if self.master_at(after) >= master:
+            return after
+        if self.master_at(self.end_s) < master:
+            return None
+        low, high = after, self.end_s
+        for _ in range(200):
+            middle = 0.5 * (low + high)
+            if middle in (low, high):
+                break
+            if self.master_at(middle) >= master:
+                high = middle
+            else:
+                low = middle
+        return high
+
+
+_tables: dict = {}  # (cam content, counts per unit, master counts) -> (profile, table)
+
+
+def _compile(path: Path, slave_counts_per_unit: float, per_unit: float):
+    """A switch's cam and its table, at the scene cam's slave counts and (where the period
+    allows a whole number of counts) its master counts per unit."""
+    content = read_bounded(path, "cam file")
+    profile = load_cam(path)
+    counts = profile.master_period * per_unit
+    master_counts = int(round(counts)) if abs(counts - round(counts)) < 1e-9 * counts else None
+    key = (content, slave_counts_per_unit, master_counts)
+    if key not in _tables:
+        spec = TableSpec.resolve(profile.table, slave_counts_per_unit=slave_counts_per_unit,
+                                 master_counts=master_counts)
+        if len(_tables) >= 8:
+            _tables.pop(next(iter(_tables)))
+        _tables[key] = (profile, ecam.compile_table(profile, spec))
+    return _tables[key]
+
+
+def _request_s(event: Event, program: _Program, period: float) -> float | None:
+    """When the event is given: its time, or when the master reaches its position."""
+    if event.at_s is not None:
+        return event.at_s
+    position = event.at_position if event.at_position is not None else event.at_period * period
+    # the master axis itself (not the phase-shifted one) reaches the position
+    master = program.master
+    raw = position * program.per_unit
+    if float(master.position(0.0)) >= raw:
+        return 0.0
+    if float(master.position(program.end_s)) < raw:
+        return None
+    low, high = 0.0, program.end_s
+    for _ in range(200):
+        middle = 0.5 * (low + high)
+        if middle in (low, high):
+            break
+        if float(master.position(middle)) >= raw:
+            high = middle
+        else:
+            low = middle
+    return high
+
+
+def _activation(event: Event, program: _Program, requested: float):
+    """(time, master) where a switch or offset takes effect, or (None, nan)."""
+    running = program.piece_at(requested)
+    if event.activation == "immediate":
+        return requested, program.master_at(requested)
+    if event.activation == "master_position":
+        target = event.activation_position
+    else:
+        x = running.x(program.master_at(requested))
+        period = running.period
+        if running.profile.periodic:
+            turns = math.ceil(x / period - 1e-12)
+            x_end = turns * period
+        else:
+            x_end = period if x < period else x
+        target = running.origin + (x_end - running.master_offset) / running.master_scaling
+    t = program.time_of(target, requested)
+    return t, target
+
+
+def _scale(piece: _Piece) -> list:
+    """What a piece's cam can produce per derivative (the noise of a jump is measured on it)."""
+    x = np.linspace(0.0, piece.period, _SCALE_SAMPLES)
+    return [piece.slave_scaling * piece.master_scaling**order * float(np.max(np.abs(piece.profile(x, order))))
+            for order in range(len(ORDER_NAMES))]
+
+
+def _jumps(left: list, right: list, scales: list) -> tuple:
+    found = []
+    for order in range(len(ORDER_NAMES)):
+        a, b = left[order], right[order]
+        noise = _RELATIVE_NOISE[order] * max(abs(a), abs(b), scales[order]) + 1e-12
+        if abs(b - a) > noise:
+            found.append((order, b - a))
+    return tuple(found)
+
+
+def _cam_out_segment(event: Event, state: tuple) -> _Segment:
+    position, velocity, acceleration = state
+    limits = (event.max_velocity, event.max_acceleration, event.max_jerk)
+    try:
+        return _Segment(f"cam-out of {event.label}", position, event.max_velocity,
+                        (position, velocity, acceleration), (0.0, 0.0, 0.0), limits,
+                        ControlInterface.Velocity)
+    except SimulationError as exc:
+        raise SimulationError(f"{event.label}: cam_out: {exc}") from None
+
+
+def _phase_segment(event: Event, state: tuple) -> _Segment:
+    position, velocity, acceleration = state
+    limits = (event.max_velocity, event.max_acceleration, event.max_jerk)
+    try:
+        return _Segment(f"phase shift of {event.label}", position, event.max_velocity,
+                        (position, velocity, acceleration), (position + event.shift, 0.0, 0.0),
+                        limits, ControlInterface.Position)
+    except SimulationError as exc:
+        raise SimulationError(f"{event.label}: phase: {exc}") from None
+
+
+def _motion(event: Event, start: float, segment: _Segment) -> Motion:
+    times = segment.critical_times(257)
+    states = np.array([segment.state(t) for t in times])
+    # the jerk is constant inside each ruckig phase: its largest |value| is the profile's
+    profile = segment.trajectory.profiles[0][0]
+    jerk = max((abs(j) for j in profile.j), default=0.0) * segment.scale
+    peaks = (float(np.max(np.abs(states[:, 1]))), float(np.max(np.abs(states[:, 2]))), jerk)
+    covered = segment.state(segment.duration)[0] - segment.state(0.0)[0]
+    return Motion(event, start, segment.duration, peaks,
+                  (event.max_velocity, event.max_acceleration, event.max_jerk), covered)
+
+
+def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
+                 t_end: np.ndarray, targets: np.ndarray, velocities: np.ndarray,
+                 reference: np.ndarray, end_s: float):
+    """The set points and the ideal slave path with the scene's events.
+
+    Parameters
+    ----------
+    events : tuple of Event
+    cam : hil_sim.rig.cam.CompiledCam
+        The scene's cam (running from the start, absolute, unscaled).
+    master : object
+        The master's motion in counts (``position``, ``velocity``, ``acceleration`` of t).
+    per_unit : float
+        Master counts per master unit of the scene's cam.
+    t_set, t_end : numpy.ndarray
+        Each cycle's set-point time and end time [s].
+    targets, velocities, reference : numpy.ndarray
+        The plan without events: targets [counts], velocity offsets [counts/s], the ideal slave
+        at each cycle's end [slave units]; returned changed from the first event on.
+    end_s : float
+        The run's last instant [s].
+
+    Returns
+    -------
+    targets, velocities, reference : numpy.ndarray
+    outcome : EventOutcome
+
+    Raises
+    ------
+    InputError
+        A switch cam in other units than the scene's; a switch or offset after a cam-out.
+    SimulationError
+        A phase shift or cam-out ruckig cannot plan within its limits.
+    """
+    profile, scale = cam.profile, cam.scale
+    program = _Program(master, per_unit, end_s)
+    program.pieces.append(_Piece(0.0, profile, cam.table, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, per_unit))
+    switches, motions = [], []
+    requests = []
+    for event in events:
+        requested = _request_s(event, program, profile.master_period)
+        requests.append((math.inf if requested is None else requested, event.index, event))
+    for requested, _, event in sorted(requests, key=lambda r: (r[0], r[1])):
+        if requested == math.inf:  # the master never gets there within the run
+            if event.action in ("switch", "offset"):
+                switches.append(Switch(event, math.nan, None))
+            continue
+        if program.out is not None:
+            raise InputError(f"{event.label}: at {requested:.6g} s should come before the cam_out "
+                             f"at {program.out[0]:.6g} s (the slave has left the cam)")
+        if event.action == "phase":
+            segment = _phase_segment(event, program.phases.state(requested))
+            program.phases.plans.append((requested, segment))
+            motions.append(_motion(event, requested, segment))
+        elif event.action == "cam_out":
+            state = program.slave_state_s(requested)
+            segment = _cam_out_segment(event, state)
+            program.out = (requested, segment)
+            motions.append(_motion(event, requested, segment))
+        else:
+            switches.append(_switch(event, program, requested, scale, per_unit))
+    targets, velocities, reference = _sample(program, cam, t_set, t_end, targets, velocities,
+                                             reference, scale)
+    phase = program.phases.sample(t_end, 0) if program.phases.plans else None
+    return targets, velocities, reference, EventOutcome(tuple(switches), tuple(motions), phase)
+
+
+def _switch(event: Event, program: _Program, requested: float, scale: float,
+            per_unit: float) -> Switch:
+    running = program.piece_at(requested)
+    if event.action == "switch":
+        new_profile, table = _compile(event.cam, scale, per_unit)
+        for unit in ("master_unit", "slave_unit"):
+            if getattr(new_profile, unit) != getattr(running.profile, unit):
+                raise InputError(f"{event.label}.cam: {getattr(new_profile, unit)!r} "
+                                 f"({unit}) should be {getattr(running.profile, unit)!r}, the "
+                                 "running cam's")
+    else:
+        new_profile, table = running.profile, running.table
+    active, master = _activation(event, program, requested)
+    if active is None:
+        return Switch(event, requested, None, cam=new_profile.name or "")
+    running = program.piece_at(active)
+    left = running.state(master, side="left")
+    origin = master if event.master == "relative" else 0.0
+    base = left[0] if event.slave == "relative" else 0.0
+    piece = _Piece(active, new_profile, table, origin, event.master_offset, event.master_scaling,
+                   base, event.slave_offset, event.slave_scaling, per_unit)
+    right = piece.state(master, side="right")
+    scales = [max(a, b) for a, b in zip(_scale(running), _scale(piece))]
+    program.pieces.append(piece)
+    return Switch(event, requested, active, master, piece.x(master), new_profile.name or "",
+                  tuple(left), tuple(right), _jumps(left, right, scales),
+                  program.master_at(active, 1))
+
+
+def _sample(program: _Program, cam, t_set, t_end, targets, velocities, reference, scale):
+    """The set points and the reference with the events: sampled per cycle from the program."""
+    first = min([p.start_s for p in program.pieces[1:]]
+                + ([program.phases.plans[0][0]] if program.phases.plans else [])
+                + ([program.out[0]] if program.out else []) + [math.inf])
+    if first == math.inf:
+        return targets, velocities, reference
+    targets, velocities, reference = targets.copy(), velocities.copy(), reference.copy()
+    per_unit = program.per_unit
+    for times, kind in ((t_set, "set"), (t_end, "end")):
+        changed = times >= first
+        if program.out is not None:
+            changed &= times < program.out[0]
+        t = times[changed]
+        if t.size:
+            phase = program.phases.sample(t, 0) if program.phases.plans else 0.0
+            counts = program.master.position(t) + phase * per_unit  # the master the slave sees
+            starts = np.array([p.start_s for p in program.pieces])
+            which = np.searchsorted(starts, t, side="right") - 1
+            for i, piece in enumerate(program.pieces):
+                mask = which == i
+                if not mask.any():
+                    continue
+                idx = np.flatnonzero(changed)[mask]
+                if kind == "set":
+                    speed = program.master.velocity(t[mask])
+                    if program.phases.plans:
+                        speed = speed + program.phases.sample(t[mask], 1) * per_unit
+                    targets[idx], velocities[idx] = _set_points(piece, counts[mask], speed, per_unit)
+                else:
+                    reference[idx] = _reference(piece, counts[mask] / per_unit)
+        if program.out is not None:
+            start, segment = program.out
+            idx = np.flatnonzero(times >= start)
+            # at rest after the stop: ruckig ends within its 1e-8 contract, the stop is exact
+            rest = (segment.state(segment.duration)[0], 0.0, 0.0)
+            states = np.array([segment.state(tt - start) if tt - start < segment.duration else rest
+                               for tt in times[idx]]).reshape(-1, 3)
+            if kind == "set":
+                targets[idx] = np.rint(states[:, 0] * scale).astype(np.int64)
+                velocities[idx] = states[:, 1] * scale
+            else:
+                reference[idx] = states[:, 0]
+    return targets, velocities, reference
+
+
+def _set_points(piece: _Piece, master_counts: np.ndarray, speed_counts: np.ndarray,
+                per_unit: float):
+    """Targets [counts] and velocity offsets [counts/s] from the piece's table, as the plan
+    computes them without events (the same bits for the scene's own cam, unscaled)."""
+    table = piece.table
+    if piece.identity:
+        x_counts = np.rint(master_counts).astype(np.int64)
+    else:
+        x = piece.x(master_counts / per_unit)
+        if not piece.profile.periodic:
+            x = np.clip(x, 0.0, piece.period)
+        x_counts = np.rint(x * piece.table_per_unit).astype(np.int64)
+    looked, slope = table.lookup(x_counts, with_slope=True)
+    if piece.identity:
+        targets = np.asarray(looked, dtype=np.int64)
+    else:
+        base = (piece.base + piece.slave_offset) * float(table.certificate.slave_counts_per_unit)
+        targets = np.rint(base + piece.slave_scaling * np.asarray(looked, dtype=float)).astype(np.int64)
+    moving = speed_counts
+    if not piece.profile.periodic:  # a cam that does not repeat holds its ends: no speed there
+        x = piece.x(master_counts / per_unit)
+        moving = np.where((x > 0.0) & (x < piece.period), speed_counts, 0.0)
+    velocities = (np.asarray(slope, dtype=float) / 65536.0 * piece.slave_scaling * piece.ratio * moving)
+    return targets, velocities
+
+
+def _reference(piece: _Piece, master_units: np.ndarray) -> np.ndarray:
+    x = piece.x(master_units)
+    if not piece.profile.periodic:
+        x = np.clip(x, 0.0, piece.period)
+    return piece.base + piece.slave_offset + piece.slave_scaling * np.asarray(piece.profile(x), dtype=float)

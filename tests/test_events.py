@@ -1,0 +1,161 @@
+"""Events while the machine runs (hil_sim.events) and tappets on the rig (hil_sim.tappet_edges):
+switches with the jumps they make, phase shifts, cam-out, and the tappet edges; checked on the
+plan (no drive runs: cheap) against the cams' own definitions, ecam.cam_join and ruckig's limits."""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ecam.cam_join import join_cams
+from ecam.camfile import load_cam
+from ecam.errors import CamFileError, InputError
+from hil_sim import SCENES_DIR
+from hil_sim.rig.cam import compile_cam
+from hil_sim.rig.plan import count_cycles, plan_run
+from hil_sim.rig.event_checks import event_checks
+from hil_sim.scene import DurationSpec, load_scene, parse_scene
+
+CAMS = SCENES_DIR / "cams"
+SPEED = 360.0  # deg/s: the change-over scenes' 60 rpm
+
+
+def _plan(scene):
+    cam = compile_cam(scene)
+    cycles = count_cycles(scene, cam.profile.master_period, scene.master.units_per_second(360.0))
+    return plan_run(scene, cam, np.zeros(cycles), cycles)
+
+
+def _scene(name="changeover", **top):
+    data = tomllib.loads((SCENES_DIR / f"{name}.toml").read_text())
+    data.update(top)
+    return parse_scene(data, base=SCENES_DIR, source=f"{name}.toml")
+
+
+@pytest.fixture(scope="module")
+def changeover():
+    scene = load_scene(SCENES_DIR / "changeover.toml")
+    return scene, _plan(scene)
+
+
+def test_a_switch_that_changes_nothing_changes_no_bit():
+    """The running cam switched to itself at its period end, absolute, unscaled: the same set
+    points, velocity offsets and reference, bit for bit, and no jump reported."""
+    plain = _scene("stiff_coupling")
+    same = _scene("stiff_coupling", event=[{"action": "offset", "at_position": 100.0}])
+    a, b = _plan(plain), _plan(same)
+    assert b.events.switches[0].active_s == pytest.approx(1.0)  # the period end at 360 deg
+    for name in ("targets", "velocities", "reference_units"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert b.events.switches[0].jumps == () and a.events is None
+
+
+def test_the_changeover_switches_are_continuous_as_cam_join_says(changeover):
+    scene, plan = changeover
+    first, second = plan.events.switches
+    assert (first.active_s, first.master) == (pytest.approx(2.0), pytest.approx(720.0))
+    # the transition ends 90 deg later: product B from there, master relative
+    assert (second.active_s, second.master) == (pytest.approx(2.25), pytest.approx(810.0))
+    assert first.jumps == () and second.jumps == ()
+    seed = load_cam(scene.cam.file)
+    transition, product_b = load_cam(CAMS / "a_to_b.toml"), load_cam(CAMS / "product_b.toml")
+    for switch, (a, b) in ((first, (seed, transition)), (second, (transition, product_b))):
+        join = join_cams(a, b, master="relative", slave="absolute")
+        assert not join.report.errors and not join.report.warnings
+        assert switch.left == pytest.approx(join.left, abs=1e-12)
+        assert switch.right == pytest.approx(join.right, abs=1e-12)
+    # the set points never step more than the cams move in a cycle: no jump reached the drive
+    assert np.max(np.abs(np.diff(plan.targets))) < 0.02 * 100000
+    checks = {c.name: c for c in event_checks(replace_run(scene, plan))[0]}
+    assert checks["switch_jumps"].passed and checks["switch_jumps"].value == 0
+
+
+def replace_run(scene, plan):
+    """What event_checks reads of a run: its scene, plan and cam."""
+    class Run:
+        pass
+    run = Run()
+    run.scene, run.plan, run.cam = scene, plan, compile_cam(scene)
+    return run
+
+
+def test_an_immediate_switch_mid_period_is_named_with_its_jump():
+    """At 180 deg the seed cam stands at its full stroke, 1.75 in, at rest; product B at its
+    dwell 0.25 in plus its stroke 1.25 in, at rest: the position jumps by -0.25 in, the velocity
+    does not, and the check fails naming it."""
+    scene = load_scene(SCENES_DIR / "changeover_immediate.toml")
+    plan = _plan(scene)
+    (switch,) = plan.events.switches
+    assert switch.master == pytest.approx(180.0) and switch.active_s == pytest.approx(0.5)
+    jumps = dict(switch.jumps)
+    assert jumps[0] == pytest.approx(1.5 - 1.75, abs=1e-9)
+    assert 1 not in jumps and 2 in jumps and switch.failed
+    check = {c.name: c for c in event_checks(replace_run(scene, plan))[0]}["switch_jumps"]
+    assert not check.passed and check.value == 1
+    assert "to_product_b switch to product_b (immediate) at 0.5 s, master 180 deg: position -0.25 in" in check.detail
+    allowed = _scene("changeover_immediate")
+    allowed = replace(allowed, events=(replace(allowed.events[0], allow_jump=True),))
+    check = {c.name: c for c in event_checks(replace_run(allowed, _plan(allowed)))[0]}["switch_jumps"]
+    assert check.passed and "(allowed)" in check.detail
+
+
+def test_the_phase_shift_and_the_cam_out_hold_their_limits(changeover):
+    scene, plan = changeover
+    phase, out = plan.events.motions
+    assert phase.covered == pytest.approx(3.0, abs=1e-7)
+    for motion in (phase, out):
+        for peak, limit in zip(motion.peaks, motion.limits):
+            assert peak <= limit * (1 + 1e-8)
+    # after the shift the reference is product B at the master plus 3 deg (relative from 810)
+    product_b = load_cam(CAMS / "product_b.toml")
+    k = int(round(3.0 / plan.cycle_s)) - 1  # t = 3 s: the shift done, the cam-out to come
+    master = plan.master_units[k]
+    assert plan.reference_units[k] == pytest.approx(float(product_b(master - 810.0 + 3.0)), abs=1e-12)
+    # the cam-out ends at rest: the last set points stand still
+    assert np.all(plan.targets[-100:] == plan.targets[-1]) and np.all(plan.velocities[-100:] == 0.0)
+    assert plan.events.phase[-1] == pytest.approx(3.0)
+
+
+def test_the_tappet_edges_come_within_a_cycle_with_the_compensation(changeover):
+    """At 360 deg/s the controller's 1 ms cycle is 0.36 deg: a compensated edge is found within
+    one cycle's travel of its place; without the compensation the valve's 20 ms dead time puts
+    it 7.2 deg late (plus that cycle)."""
+    _, plan = changeover
+    (glue,) = plan.tappets
+    assert glue.edges == 8  # on and off in each of four periods
+    assert glue.worst <= SPEED * 0.001
+    assert SPEED * 0.02 <= glue.worst_uncompensated <= SPEED * 0.021
+    for row in glue.rows:
+        assert row["programmed"] in (200.0, 280.0)
+
+
+@pytest.mark.parametrize("event, message", [
+    ({"action": "switch", "cam": "x.toml"}, "should give exactly one of at_period, at_position, at_s"),
+    ({"action": "phase", "at_s": 1.0, "shift": 1.0, "max_velocity": 1.0, "max_acceleration": 1.0},
+     "event[0].max_jerk: missing"),
+    ({"action": "cam_out", "at_s": 1.0, "shift": 1.0}, "event[0].shift: does not apply to action 'cam_out'"),
+    ({"action": "switch", "at_s": 1.0, "cam": "nowhere.toml"}, "event[0].cam: 'nowhere.toml' does not exist"),
+    ({"action": "offset", "at_s": 1.0, "activation": "master_position"},
+     "event[0].activation_position: missing"),
+    ({"action": "jump", "at_s": 1.0}, "event[0].action: 'jump' should be one of switch, offset, phase, cam_out"),
+])
+def test_bad_events_are_refused_naming_the_field(event, message):
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data["event"] = [copy.deepcopy(event)]
+    with pytest.raises(CamFileError) as caught:
+        parse_scene(data, base=SCENES_DIR, source="s.toml")
+    assert message in str(caught.value)
+
+
+def test_events_after_a_cam_out_and_drive_side_events_are_refused():
+    late = _scene("changeover")
+    late = replace(late, events=late.events + (replace(late.events[0], index=9, at_position=1400.0),))
+    with pytest.raises(InputError, match="should come before the cam_out"):
+        _plan(late)
+    drive = replace(_scene("changeover"), cam_mode="drive", duration=DurationSpec(cycles=10))
+    with pytest.raises(InputError, match="cam_mode 'drive' should be cam_mode 'controller'"):
+        _plan(drive)

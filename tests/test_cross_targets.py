@@ -159,6 +159,31 @@ def test_table_switch_under_systick_on_cortex_m4(work):
     assert stats["loads"] == 300 and stats["ticks"] > 300 and stats["seen_a"] > 0 and stats["seen_b"] > 0, stats
 
 
+@pytest.mark.parametrize("name", list(cross.TARGETS))
+def test_table_switch_bit_for_bit_on_target(work, name):
+    """ecam_table_pair.c, the switch at a period boundary (issue 23), on the target: a seeded
+    script of 3000 commands (engagements, arms in every mode and refused ones, cancels, masters
+    crossing boundaries both ways; tests/test_table_pair.py) gives every output of
+    ecam.table_pair.SwitchPair, bit for bit."""
+    import test_table_pair as pairs
+
+    target = require(name)
+    directory = work / f"switch-{name}"
+    directory.mkdir()
+    exe = cross.build(target, directory / "switch_check", ["-O2", "-Wall", "-Wextra", "-Werror"],
+                      sources=pairs.DRIVER_SOURCES)  # fmt: skip
+    blobs = pairs.table_pool()
+    pairs.write_pool(directory, blobs)
+    script = pairs.random_script(np.random.default_rng(2323), 3000)
+    proc = cross.run(target, exe, pairs.driver_args(directory, script), directory, timeout=300)
+    assert proc.returncode == 0, f"{name}: exit {proc.returncode}: {proc.stdout} {proc.stderr}"
+    got, expected = pairs.read_out(directory), pairs.run_python(script, pairs.python_tables(blobs))
+    bad = [k for k, (g, e) in enumerate(zip(got, expected)) if g != e]
+    assert len(got) == len(expected)
+    assert not bad, f"{name}: command {bad[0]} {script[bad[0]]}: {got[bad[0]]} != {expected[bad[0]]}"
+    assert sum(row[0] == 1 for row in got) > 50  # the script switches, many times
+
+
 # --------------------------------------------------------------------------------------------
 # Instruction budgets (issue 11): exact counts, deterministic for one compiler
 # --------------------------------------------------------------------------------------------

@@ -169,8 +169,9 @@ DESCRIPTIONS = {
             "prints its report (--json, --plot, --find-max-speed); several, or directories, print a "
             "progress line each and a summary table. --junit and --html write reports for either.",
             "0 every scene passed, 1 a check failed, 2 a scene could not run"),
-    "firmware": ("The C reference runtime (ecam_table.c, ecam_table.h) and the table format it "
-                 "implements (FORMAT.md), written from the installed package.", "0 written"),
+    "firmware": ("The C reference runtime (ecam_table.c, ecam_table.h), the table switch at a period "
+                 "boundary (ecam_table_pair.c, .h) and the table format they implement (FORMAT.md), "
+                 "written from the installed package.", "0 written"),
     "drive": ("A virtual CiA 402 drive as a CANopen node for a master in another process (python "
               "canopen, a soft PLC, CANopenNode), until Ctrl-C or SIGTERM.",
               "0 stopped, 2 the bus could not be opened"),
@@ -282,7 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_sim)
     p = sub.add_parser("firmware", help="write the C runtime (ecam_table.c, .h) and FORMAT.md into a directory")
     p.add_argument("--emit", metavar="DIR", required=True,
-                   help="directory to write ecam_table.c, ecam_table.h and FORMAT.md into (created if missing)")
+                   help="directory to write ecam_table.c/.h, ecam_table_pair.c/.h and FORMAT.md into "
+                        "(created if missing)")
     p.set_defaults(func=_firmware)
     p = sub.add_parser("sweep", help="robustness sweep of a scene over manufacturing spread, on Dask")
     from .sweep_command import add_sweep_arguments

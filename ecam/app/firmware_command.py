@@ -1,6 +1,7 @@
-"""`ecam firmware --emit DIR`: the C reference runtime (``ecam_table.c``, ``ecam_table.h``) and
-the table format it implements (``FORMAT.md``), written from the installed package, so a firmware
-project can take the runtime that matches its ecam (every generated header points to them)."""
+"""`ecam firmware --emit DIR`: the C reference runtime (``ecam_table.c``, ``ecam_table.h``), the
+table switch at a period boundary (``ecam_table_pair.c``, ``ecam_table_pair.h``) and the table
+format they implement (``FORMAT.md``), written from the installed package, so a firmware project
+can take the runtime that matches its ecam (every generated header points to them)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from ecam.errors import InputError
 
 #: The runtime's files, shipped as package data (links to firmware_tables/ in a checkout).
 RUNTIME_DIR = Path(__file__).resolve().parents[1] / "c_runtime"
-RUNTIME_FILES = ("ecam_table.h", "ecam_table.c", "FORMAT.md")
+RUNTIME_FILES = ("ecam_table.h", "ecam_table.c", "ecam_table_pair.h", "ecam_table_pair.c", "FORMAT.md")
 
 
 def runtime_files() -> dict[str, bytes]:
@@ -41,5 +42,6 @@ def cmd_firmware(args) -> int:
         raise InputError(f"--emit: {str(target)!r} cannot be written: {exc.strerror or exc}") from None
     for path in paths:
         print(f"wrote {path}")
-    print("build: cc -std=c99 -c ecam_table.c; load a blob with ecam_table_init (see FORMAT.md)")
+    print("build: cc -std=c99 -c ecam_table.c; load a blob with ecam_table_init (see FORMAT.md); "
+          "ecam_table_pair.c (optional) switches tables at a period boundary")
     return 0

@@ -1,0 +1,1 @@
+../../firmware_tables/ecam_table_pair.h

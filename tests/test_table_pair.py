@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ecam import CamTable
@@ -361,7 +361,7 @@ def scripts(draw):
     return script
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=60, deadline=None, derandomize=True)
 @given(script=scripts())
 def test_c_and_python_agree_bit_for_bit(driver, script):
     both(driver, script)

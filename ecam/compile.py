@@ -19,7 +19,7 @@ from .certificate import Certificate, Measurement
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
-    HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable,
+    HEADER_BYTES, KINDS, MAX_NET_DENOMINATOR, MAX_RAMP, MAX_STEP_COUNTS, MAX_WORK_BITS, SLOPE_BITS, CamTable,
     TableFormat, divisors, narrow_horner, overflow_proof,
 )
 from .table_spec import MAX_POINTS, TableSpec, parse_tolerance
@@ -34,6 +34,9 @@ WRAP_PERIODS = (1, 2, 10**6, 10**9)
 WRAP_WINDOW = 4096  # master counts either side of each seam
 WRAP_SPREAD = 1024  # and this many spread over the period
 _INT32_MAX = 2**31 - 1
+# A net stroke whose stored positions would keep fewer fraction bits than this (their rounding above
+# 2^-11 counts) is stored relative to its ramp (format version 3; FORMAT.md step 8).
+RAMP_BELOW_BITS = 10
 _INT64_LIMIT = 2.0**63 * (1 - 1e-9)  # float bounds carry a relative margin
 # max over tau of |f - p| = h^(n+1) * max|f^(n+1)| * _ERROR_CONSTANT[n]
 _ERROR_CONSTANT = {1: 1 / 8, 3: 1 / 384, 5: 1 / 46080}
@@ -448,11 +451,28 @@ def _sorted_unique(values: np.ndarray) -> np.ndarray:
 # fixed-point format --------------------------------------------------------------------------
 
 
+def _ramp(periodic, h, intervals, data, net: Fraction):
+    """S, the whole slave counts per master count of a net stroke's ramp, when the table stores
+    its data relative to it (format version 3), else 0: when the absolute positions would keep
+    fewer than RAMP_BELOW_BITS fraction bits in int32 (a large stroke: 2^26 counts per cut keeps
+    5) and S is not 0. The ramp S m is a line, so the Hermite data of the cam minus the ramp are
+    the positions minus S i h, the slopes minus S h, the curvatures as they are."""
+    if not periodic or net == 0 or _fit_bits(data[0]) >= RAMP_BELOW_BITS:
+        return 0
+    ramp = math.floor(net / (h * intervals))
+    return ramp if 0 < abs(ramp) <= MAX_RAMP else 0
+
+
 def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fraction(0), narrow: bool = False):
     """Pick position/tau/work/slope/curvature bits as fine as the int64 budget allows; prove it.
     With ``narrow``, as fine as keeps the expanded form's Horner values in 32-bit words
-    (:func:`ecam.table.narrow_horner`)."""
+    (:func:`ecam.table.narrow_horner`). A large net stroke stores its data relative to its ramp
+    (:func:`_ramp`, format version 3)."""
     pow2 = h & (h - 1) == 0
+    ramp = _ramp(periodic, h, intervals, data, net)
+    if ramp:
+        data = [data[0] - float(ramp * h) * np.arange(intervals + 1, dtype=np.float64),
+                *(data[1] - float(ramp * h) for _ in data[1:2]), *data[2:]]
     position_fit = min(30, _fit_bits(data[0]))
     need = (h - 1).bit_length()
     tau_options = [need] if pow2 else list(range(min(30, need + 16), need - 1, -1))
@@ -476,11 +496,11 @@ def _choose_format(degree, periodic, h, intervals, data, net: Fraction = Fractio
                 if np.abs(curvatures).max() > _INT32_MAX:
                     raise TableFormatError(f"table curvature {np.abs(data[2]).max():.4g} counts per step^2 overflows int32")
             ok, why, preshift = overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits,
-                                       curvature_bits, work_bits, tau_bits, tau_recip)
+                                       curvature_bits, work_bits, tau_bits, tau_recip, abs(ramp) << SLOPE_BITS)
             if ok:
                 fmt = TableFormat(degree, periodic, intervals + 1, h * intervals, h, need if pow2 else -1,
                                   tau_bits, work_bits, slope_bits, curvature_bits, preshift, tau_recip,
-                                  position_bits, net.numerator, net.denominator)
+                                  position_bits, net.numerator, net.denominator, bool(ramp))
                 if narrow and not narrow_horner(CamTable(fmt, positions, slopes, curvatures)):
                     last_error = ("no format keeps the expanded form's Horner values in 32-bit words "
                                   f"(work_bits down to {work_bits}): horner_bits 32 needs a smaller stroke in counts")

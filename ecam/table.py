@@ -22,7 +22,7 @@ from .errors import TableFormatError
 from .validate import fail
 
 __all__ = ["TableFormat", "CamTable", "LOADER_STATUS", "loader_proof", "narrow_horner", "INTERPOLATIONS", "KINDS", "SLOPE_BITS", "HEADER_BYTES", "FORMAT_VERSION", "FORMAT_VERSIONS",
-           "MAGIC", "MAX_NET_DENOMINATOR"]
+           "MAGIC", "MAX_NET_DENOMINATOR", "MAX_RAMP"]
 
 KINDS = {"linear": 1, "cubic": 3, "quintic": 5}
 # Every name a user may ask for: a kind, or "auto" (the smallest table of any kind within a tolerance).
@@ -31,9 +31,13 @@ _KIND_NAMES = {v: k for k, v in KINDS.items()}
 SLOPE_BITS = 16
 HEADER_BYTES = 64
 # Version 2 adds the net stroke per period (header bytes 48..59). A table without one is written
-# as version 1, byte for byte as before, so every loader of version 1 still reads it.
-FORMAT_VERSION = 2
-FORMAT_VERSIONS = (1, 2)
+# as version 1, byte for byte as before, so every loader of version 1 still reads it. Version 3 is
+# version 2 with the stored data relative to the net stroke's ramp (S counts per master count,
+# S = floor(N / (D M))), so that a large stroke keeps its positions' fraction bits in int32.
+FORMAT_VERSION = 3
+FORMAT_VERSIONS = (1, 2, 3)
+# Version 3's ramp: |S| 2^16 (its share of the Q16 slope) stays inside int32.
+MAX_RAMP = 2**15 - 1
 MAGIC = b"ECAM"
 # The net stroke is the exact rational net_stroke_num / net_stroke_den counts per period.
 MAX_NET_DENOMINATOR = 2**32 - 1
@@ -66,6 +70,7 @@ class TableFormat:
     position_bits: int = 0
     net_stroke_num: int = 0
     net_stroke_den: int = 1
+    ramp: bool = False
 
     @property
     def interp(self) -> str:
@@ -79,8 +84,21 @@ class TableFormat:
 
     @property
     def version(self) -> int:
-        """The blob format version this table is written in: 1 without a net stroke, else 2."""
+        """The blob format version this table is written in: 1 without a net stroke, 2 with one,
+        3 with one and the stored data relative to its ramp (:attr:`ramp`)."""
+        if self.ramp:
+            return 3
         return 1 if self.net_stroke_num == 0 else 2
+
+    @property
+    def ramp_slope(self) -> int:
+        """S, the ramp of a version-3 table in whole slave counts per master count:
+        ``floor(N / (D M))`` for the net stroke N/D per period of M master counts (0 unless
+        :attr:`ramp`). The lookup adds ``S * m_local`` to the position and ``S * 2^16`` to the
+        slope (FORMAT.md step 8)."""
+        if not self.ramp:
+            return 0
+        return self.net_stroke_num // (self.net_stroke_den * self.master_counts)
 
     @property
     def values_per_point(self) -> int:
@@ -208,7 +226,7 @@ class CamTable:
 
     @property
     def format_version(self) -> int:
-        """The blob format version :meth:`to_bytes` writes: 1, or 2 for a net stroke."""
+        """The blob format version :meth:`to_bytes` writes: 1, 2 for a net stroke, 3 for one stored relative to its ramp."""
         return self.format.version
 
     @property
@@ -298,6 +316,7 @@ class CamTable:
             r += 1 << (w - 1)
             np.right_shift(r, w, out=r)
         position = r
+        ramp = f.ramp_slope
         if outside is not None:
             below, above = np.atleast_1d(outside[0]), np.atleast_1d(outside[1])
             position[below] = self._end_position(0)
@@ -306,6 +325,8 @@ class CamTable:
             turns = np.atleast_1d(np.floor_divide(_as_counts(master_counts), f.master_counts))
             with np.errstate(over="ignore"):
                 position += net_stroke_term(turns, f.net_stroke_num, f.net_stroke_den)
+                if ramp:  # step 8: S m_local, exact (|S| < 2^15, m_local < 2^31)
+                    position += np.int64(ramp) * np.atleast_1d(np.mod(_as_counts(master_counts), f.master_counts))
         position = _unwrap(position, master_counts)
         if not with_slope:
             return position
@@ -319,6 +340,8 @@ class CamTable:
         np.right_shift(q, SLOPE_BITS + shift + w - f.slope_preshift, out=q)
         if outside is not None:
             q[np.atleast_1d(outside[0]) | np.atleast_1d(outside[1])] = 0
+        if ramp:
+            q += ramp << SLOPE_BITS
         return position, _unwrap(q, master_counts)
 
     def _lookup_one(self, m: int, with_slope: bool):
@@ -349,6 +372,7 @@ class CamTable:
         position = (r + ((1 << (w - 1)) if w else 0)) >> w
         if f.net_stroke_num:  # exact in Python integers, then modulo 2^64 as the vector path
             position += (turns * f.net_stroke_num + f.net_stroke_den // 2) // f.net_stroke_den
+            position += f.ramp_slope * local
             position = ((position + 2**63) % 2**64) - 2**63
         if not with_slope:
             return position
@@ -356,7 +380,7 @@ class CamTable:
         for k in range(n - 1, 0, -1):
             q = k * c[k] + ((q * tau) >> shift)
         slope = ((q >> f.slope_preshift) * f.tau_recip) >> (SLOPE_BITS + shift + w - f.slope_preshift)
-        return position, slope
+        return position, slope + (f.ramp_slope << SLOPE_BITS)
 
     def _scalar_rows(self) -> list:
         rows = getattr(self, "_rows_list", None)
@@ -386,7 +410,7 @@ class CamTable:
         """The binary blob of FORMAT.md: 64-byte header (with CRCs) + little-endian payload."""
         f = self.format
         payload = self._payload()
-        # Version 1 (bytes 48..59 zero) unless the table has a net stroke: version 2 stores it there.
+        # Version 1 (bytes 48..59 zero) unless the table has a net stroke: versions 2 and 3 store it there.
         net = bytes(12) if f.version == 1 else _NET.pack(f.net_stroke_num, f.net_stroke_den)
         header = _HEADER.pack(
             MAGIC, f.version, HEADER_BYTES, f.degree, int(f.periodic), f.step_shift, f.tau_bits,
@@ -416,16 +440,17 @@ class CamTable:
         if magic != MAGIC:
             _reject("ECAM_E_MAGIC", f"blob magic {magic!r} should be {MAGIC!r}")
         if version not in FORMAT_VERSIONS:
-            _reject("ECAM_E_VERSION", f"blob format_version {version} should be 1 or 2")
+            _reject("ECAM_E_VERSION", f"blob format_version {version} should be 1, 2 or 3")
         if header_bytes != HEADER_BYTES:
             _reject("ECAM_E_HEADER_SIZE", f"blob header_bytes {header_bytes} should be {HEADER_BYTES}")
         if zlib.crc32(data[: HEADER_BYTES - 4]) != header_crc:
             _reject("ECAM_E_HEADER_CRC", f"blob header_crc32 0x{header_crc:08x} does not match the header")
         net_num, net_den = 0, 1
-        if version == 2:  # bytes 48..59 hold the net stroke; only 29..31 stay reserved
+        if version >= 2:  # bytes 48..59 hold the net stroke; only 29..31 stay reserved
             (net_num, net_den), reserved2 = _NET.unpack(reserved2), b""
         fmt = TableFormat(degree, bool(flags & 1), points, master_counts, step_counts, step_shift, tau_bits,
-                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits, net_num, net_den)
+                          work_bits, slope_bits, curvature_bits, preshift, tau_recip, position_bits, net_num, net_den,
+                          version == 3)
         failure = broken_field_rule(fmt, BlobBytes(flags, reserved + reserved2, payload_bytes))
         if failure is not None:
             _reject(failure[0], f"blob {failure[1]}")
@@ -440,7 +465,7 @@ class CamTable:
         # The CRCs prove the bytes are intact, not that they came from the compiler: prove, for the
         # header's own shifts, that no intermediate can leave int64 and no output int32.
         failure = loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits,
-                               work_bits, tau_bits, tau_recip, preshift)
+                               work_bits, tau_bits, tau_recip, preshift, abs(fmt.ramp_slope) << SLOPE_BITS)
         if failure is not None:
             _reject(*failure)
         return cls(fmt, positions, slopes, curvatures)
@@ -456,7 +481,7 @@ LOADER_STATUS = {
     "ECAM_E_CURVATURE_BITS": -22, "ECAM_E_SLOPE_PRESHIFT": -23, "ECAM_E_PAYLOAD_BYTES": -24,
     "ECAM_E_POINT_RANGE": -25, "ECAM_E_HORNER_RANGE": -26, "ECAM_E_SUM_RANGE": -27,
     "ECAM_E_POSITION_RANGE": -28, "ECAM_E_SLOPE_HORNER_RANGE": -29, "ECAM_E_SLOPE_PRODUCT": -30,
-    "ECAM_E_SLOPE_RANGE": -31, "ECAM_E_NET_STROKE": -34,
+    "ECAM_E_SLOPE_RANGE": -31, "ECAM_E_NET_STROKE": -34, "ECAM_E_RAMP": -36,
 }  # fmt: skip
 
 
@@ -562,6 +587,9 @@ FIELD_RULES = (
     FieldRule("ECAM_E_NET_STROKE", lambda f, b: bool(_net_stroke_rule(f.periodic, f.net_stroke_num, f.net_stroke_den)),
               lambda f, b: f"net stroke {f.net_stroke_num}/{f.net_stroke_den} counts per period should be "
                            f"{_net_stroke_rule(f.periodic, f.net_stroke_num, f.net_stroke_den)}"),
+    FieldRule("ECAM_E_RAMP", lambda f, b: f.ramp and (f.net_stroke_num == 0 or abs(f.ramp_slope) > MAX_RAMP),
+              lambda f, b: f"ramp {f.ramp_slope} counts per master count (version 3) should be that of a net stroke "
+                           f"(not 0/1), within +-{MAX_RAMP}"),
 )
 
 
@@ -590,7 +618,7 @@ PROOF_CHUNK = 1 << 16
 
 
 def loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits,
-                 tau_bits, tau_recip, slope_preshift):
+                 tau_bits, tau_recip, slope_preshift, slope_margin=0):
     """The loader's overflow proof (FORMAT.md "Overflow proof"), in exact integers: None when every
     lookup of the table keeps its intermediates inside int64 and both outputs inside
     -(2^31 - 1)..2^31 - 1, else (status, message) of the first failing rule, interval by interval,
@@ -602,8 +630,12 @@ def loader_proof(degree, positions, slopes, curvatures, position_bits, slope_bit
     lies clearly inside its limit (every table the compiler writes), and only the others are
     decided in exact integers. An interval the screen passes passes every rule exactly, so the
     first failure found in exact integers, in interval order, is the C loader's.
+
+    ``slope_margin`` is |S| 2^16, the share of a version-3 ramp in the slope: the slope of the
+    stored data stays within (2^31 - 1) - slope_margin (rule -31).
     """
-    args = (degree, position_bits, slope_bits, curvature_bits, work_bits, tau_bits, tau_recip, slope_preshift)
+    args = (degree, position_bits, slope_bits, curvature_bits, work_bits, tau_bits, tau_recip, slope_preshift,
+            slope_margin)
     intervals = len(positions) - 1
     for start in range(0, intervals, PROOF_CHUNK):
         stop = min(start + PROOF_CHUNK, intervals)
@@ -622,7 +654,7 @@ _SCREEN_ERROR = 2.0**-40  # relative rounding error allowed for each float bound
 
 
 def _screen_passes(positions, slopes, curvatures, degree, position_bits, slope_bits, curvature_bits, work_bits,
-                   tau_bits, tau_recip, slope_preshift) -> np.ndarray:
+                   tau_bits, tau_recip, slope_preshift, slope_margin=0) -> np.ndarray:
     """Per interval, True when float64 bounds prove every rule of the overflow proof with room to
     spare. Stored words times powers of two are exact in float64; every derived value carries a
     bound of its rounding error (relative to the sum of the magnitudes it adds), so each upper
@@ -666,12 +698,12 @@ def _screen_passes(positions, slopes, curvatures, degree, position_bits, slope_b
     s = q / 2.0**slope_preshift + 1  # above ceil(q_1 / 2^P)
     product = s * float(tau_recip) * inflate
     ok &= product < two63
-    ok &= product < (2.0**31 - 1) * 2.0 ** (SLOPE_BITS + tau_bits + work_bits - slope_preshift)
+    ok &= product < (2.0**31 - 1 - slope_margin) * 2.0 ** (SLOPE_BITS + tau_bits + work_bits - slope_preshift)
     return ok
 
 
 def _exact_proof(positions, slopes, curvatures, intervals, degree, position_bits, slope_bits, curvature_bits,
-                 work_bits, tau_bits, tau_recip, slope_preshift):
+                 work_bits, tau_bits, tau_recip, slope_preshift, slope_margin=0):
     """The proof in exact integers for the listed intervals (indices into the given points, in
     ascending order): (interval, status, what it checks) of the first failure, or None."""
     n = degree
@@ -723,9 +755,9 @@ def _exact_proof(positions, slopes, curvatures, intervals, degree, position_bits
     product = s * tau_recip
     failures["ECAM_E_SLOPE_PRODUCT"] = (product >= two63, f"asr(q, slope_preshift {slope_preshift}) x tau_recip "
                                                           f"{tau_recip} should be < 2^63")
-    failures["ECAM_E_SLOPE_RANGE"] = (product > (2**31 - 1) << out_shift,
+    failures["ECAM_E_SLOPE_RANGE"] = (product > (2**31 - 1 - slope_margin) << out_shift,
                                       f"the slope should stay within -(2^31 - 1)..2^31 - 1 at slope_preshift "
-                                      f"{slope_preshift}")
+                                      f"{slope_preshift}" + (f" with the ramp's {slope_margin}" if slope_margin else ""))
     first = {status: np.flatnonzero(np.asarray(bad, dtype=bool)) for status, (bad, _) in failures.items()}
     found = [(int(intervals[where[0]]), order, status) for order, (status, where) in enumerate(first.items())
              if where.size]
@@ -797,7 +829,7 @@ def _coefficients_float(degree, positions, slopes, curvatures, position_bits, sl
 
 
 def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_bits, curvature_bits, work_bits, tau_bits,
-           tau_recip):
+           tau_recip, slope_margin=0):
     """Prove every intermediate of FORMAT.md steps 4-6 stays inside int64 and every output inside
     int32, for every interval and every tau < 2^F.
 
@@ -842,7 +874,7 @@ def overflow_proof(degree, positions, slopes, curvatures, position_bits, slope_b
     final = SLOPE_BITS + tau_bits + work_bits - preshift
     if final < 0:
         return False, f"slope shift {final} would be negative", 0
-    slope_peak = (q_max / 2.0**preshift + 1) * tau_recip / 2.0**final + 1
+    slope_peak = (q_max / 2.0**preshift + 1) * tau_recip / 2.0**final + 1 + slope_margin
     if slope_peak > _INT32_MAX:
         return False, f"slope may reach {slope_peak:.4g} (Q16 counts per count), past int32", 0
     return True, "", preshift

@@ -90,6 +90,7 @@
 #define ECAM_SIGN_BIT32 ((uint32_t)0x80000000u)
 #define ECAM_INT32_LIMIT ((uint32_t)0x7FFFFFFFu)
 #define ECAM_NET_SMALL_DEN 65536u /* D up to 2^16: step 7's last quotient fits 32 bits */
+#define ECAM_MAX_RAMP 32767u      /* |S| of version 3: S 2^16 fits the int32 slope */
 
 /* ------------------------------------------------------------------------------------------ */
 /* Byte access and integer helpers                                                            */
@@ -1094,6 +1095,62 @@ static ECAM_COLD void ecam_lookup_outside(const ecam_table *t, int32_t *position
     t->lookup_at(t, position, local, term, slope);
 }
 
+/* ------------------------------------------------------------------------------------------ */
+/* Version 3: the ramp (FORMAT.md step 8)                                                     */
+/* ------------------------------------------------------------------------------------------ */
+
+/* Steps 1 and 7 of any master with step 8's term: m mod M, and in *term the net term plus
+ * S (m mod M), modulo 2^32 (the int32 wrap the position is returned in). */
+static ECAM_INLINE uint32_t ecam_ramp_wrap(const ecam_table *t, int64_t m, uint32_t *term)
+{
+    uint64_t turns = 0u;
+    uint32_t local = (uint32_t)m;
+    uint32_t net = 0u;
+
+    if ((uint64_t)m >= t->master_limit) { /* also every negative m */
+        local = ecam_wrap_turns(t, m, &turns);
+        net = ecam_net_term(t, turns);
+    }
+    *term = net + (local * t->ramp);
+    return local;
+}
+
+/* The position kernel (and position_outside) of a version-3 table: the degree's continuation,
+ * its term carrying the ramp (a tail call). */
+static int32_t ecam_position_ramp(const ecam_table *t, int64_t m)
+{
+    uint32_t term = 0u;
+    const uint32_t local = ecam_ramp_wrap(t, m, &term);
+
+    return t->ramp_at(t, local, term);
+}
+
+/* Its position_at: a master already inside [0, M), a net term already formed. */
+static int32_t ecam_position_at_ramp(const ecam_table *t, uint32_t local, uint32_t term)
+{
+    return t->ramp_at(t, local, term + (local * t->ramp));
+}
+
+/* Its slope kernel: the degree's for m mod M (the slope has no net term), plus S 2^16. */
+static int32_t ecam_slope_ramp(const ecam_table *t, int64_t m)
+{
+    const int64_t local = ((uint64_t)m >= t->master_limit) ? (int64_t)ecam_wrap(t, m) : m;
+
+    return ecam_i32((uint32_t)t->ramp_slope_kernel(t, local) + t->ramp_slope);
+}
+
+/* Its lookup_at: both outputs of a master inside [0, M), the position plus a net term. */
+static void ecam_lookup_at_ramp(const ecam_table *t, int32_t *position, uint32_t local, uint32_t term,
+                                int32_t *slope)
+{
+    if (position != NULL) {
+        *position = t->ramp_at(t, local, term + (local * t->ramp));
+    }
+    if (slope != NULL) {
+        *slope = ecam_i32((uint32_t)t->ramp_slope_kernel(t, (int64_t)local) + t->ramp_slope);
+    }
+}
+
 /* The hot path: one indirect jump to the kernel chosen at init. */
 int32_t ecam_table_position(const ecam_table *t, int64_t master_counts)
 {
@@ -1163,6 +1220,7 @@ typedef struct ecam_header {
     uint64_t tau_recip;
     uint64_t net_num;         /* N (int64 bits); 0 in version 1 */
     uint32_t net_den;         /* D; 1 in version 1 */
+    uint32_t ramp;            /* version 3: S = floor(N / (D M)) as int32 bits (rule -36); else 0 */
     unsigned version;
     uint32_t points;
     uint32_t master_counts;
@@ -1206,7 +1264,7 @@ static ecam_status ecam_check_envelope(const uint8_t *blob, size_t len)
         blob[3] != (uint8_t)'M') {
         return ECAM_E_MAGIC;
     }
-    if ((ecam_get_u16(&blob[ECAM_OFF_VERSION]) != 1u) && (ecam_get_u16(&blob[ECAM_OFF_VERSION]) != 2u)) {
+    if ((ecam_get_u16(&blob[ECAM_OFF_VERSION]) < 1u) || (ecam_get_u16(&blob[ECAM_OFF_VERSION]) > 3u)) {
         return ECAM_E_VERSION;
     }
     if (ecam_get_u16(&blob[ECAM_OFF_HEADER_BYTES]) != (uint32_t)ECAM_HEADER_BYTES) {
@@ -1240,7 +1298,8 @@ static void ecam_read_header(const uint8_t *blob, ecam_header *h)
     h->version = ecam_get_u16(&blob[ECAM_OFF_VERSION]);
     h->net_num = 0u;
     h->net_den = 1u;
-    if (h->version == 2u) { /* bytes 48..59: the net stroke N (int64), D (uint32) */
+    h->ramp = 0u;
+    if (h->version >= 2u) { /* bytes 48..59: the net stroke N (int64), D (uint32) */
         h->net_num = ecam_get_u64(&blob[ECAM_OFF_RESERVED_B]);
         h->net_den = ecam_get_u32(&blob[ECAM_OFF_RESERVED_B + 8u]);
     }
@@ -1293,6 +1352,29 @@ static bool ecam_net_stroke_ok(const ecam_header *h)
         return false;
     }
     return (magnitude == 0u) || ((h->flags & 1u) != 0u);
+}
+
+/* Rule ECAM_E_RAMP (version 3; after ECAM_E_NET_STROKE, so D >= 1 and |N| < D 2^31): a net stroke
+ * N != 0 and S = floor(N / (D M)) within +-(2^15 - 1), so that S 2^16 fits the slope. S goes to
+ * h->ramp. D M < 2^63: the division is exact in 64 bits (init only). */
+static bool ecam_ramp_ok(ecam_header *h)
+{
+    const bool negative = (h->net_num & ECAM_SIGN_BIT64) != 0u;
+    const uint64_t magnitude = negative ? (0u - h->net_num) : h->net_num;
+    const uint64_t period = (uint64_t)h->net_den * h->master_counts;
+    uint64_t whole = magnitude / period;
+
+    if (h->version != 3u) {
+        return true;
+    }
+    if (negative && ((magnitude % period) != 0u)) {
+        whole++; /* floor of a negative quotient */
+    }
+    if ((magnitude == 0u) || (whole > ECAM_MAX_RAMP)) {
+        return false;
+    }
+    h->ramp = negative ? (0u - (uint32_t)whole) : (uint32_t)whole;
+    return true;
 }
 
 /* R = ceil(2^(32+F) / h) checked by multiplication: R * h >= 2^(32+F) > (R - 1) * h. */
@@ -1365,8 +1447,8 @@ static ecam_status ecam_check_format(const ecam_header *h)
     return ECAM_OK;
 }
 
-/* Every field rule of FORMAT.md, in its order, on a header whose CRC matched. */
-static ecam_status ecam_check_fields(const uint8_t *blob, const ecam_header *h)
+/* Every field rule of FORMAT.md, in its order, on a header whose CRC matched (h->ramp set). */
+static ecam_status ecam_check_fields(const uint8_t *blob, ecam_header *h)
 {
     ecam_status status;
 
@@ -1391,6 +1473,9 @@ static ecam_status ecam_check_fields(const uint8_t *blob, const ecam_header *h)
     if ((status == ECAM_OK) && !ecam_net_stroke_ok(h)) {
         status = ECAM_E_NET_STROKE;
     }
+    if ((status == ECAM_OK) && !ecam_ramp_ok(h)) {
+        status = ECAM_E_RAMP;
+    }
     return status;
 }
 
@@ -1413,6 +1498,7 @@ typedef struct ecam_proof {
     ecam_wide reach_limit;     /* Dn * (2^31 - 1) * 2^W */
     uint64_t product_limit;    /* largest r with r * T < 2^63 (T = 2^F - 1 > 0) */
     uint64_t tau_recip;        /* R */
+    uint64_t slope_limit;      /* 2^31 - 1 less a version-3 ramp's |S| 2^16 */
     unsigned degree;
     unsigned has_tau;          /* T > 0 */
     unsigned position_shift;   /* W - Qy */
@@ -1601,7 +1687,7 @@ static ECAM_COLD ecam_status ecam_slope_ok(const ecam_proof *p, uint64_t q)
     if (!ecam_int64_ok(&product)) {
         return ECAM_E_SLOPE_PRODUCT;
     }
-    ecam_wide_shl(&limit, ECAM_INT32_LIMIT, p->out_shift);
+    ecam_wide_shl(&limit, p->slope_limit, p->out_shift);
     if (!ecam_wide_at_most(&product, &limit)) {
         return ECAM_E_SLOPE_RANGE;
     }
@@ -1689,6 +1775,8 @@ static ecam_status ecam_prove(const uint8_t *blob, const ecam_header *h)
     p.has_tau = (tau_max > 0u) ? (unsigned)1u : (unsigned)0u;
     p.product_limit = (tau_max > 0u) ? ((ECAM_SIGN_BIT64 - 1u) / tau_max) : (uint64_t)0u;
     p.tau_recip = h->tau_recip;
+    p.slope_limit = (uint64_t)ECAM_INT32_LIMIT -
+                    ((uint64_t)((ecam_i32(h->ramp) < 0) ? (0u - h->ramp) : h->ramp) << ECAM_SLOPE_FRACTION_BITS);
     p.position_shift = h->work_bits - h->position_bits;
     p.slope_shift = h->work_bits - h->slope_bits;
     p.curvature_shift = h->work_bits - h->curvature_bits;
@@ -1882,6 +1970,17 @@ static void ecam_prepare(const uint8_t *blob, const ecam_header *h, ecam_table *
     t->position_outside = ecam_position_outside;
     ecam_pick_at(h, t);
     ecam_set_net_stroke(h, t);
+    if (h->ramp != 0u) { /* version 3: the degree's kernels run inside the ramp's */
+        t->ramp = h->ramp;
+        t->ramp_slope = h->ramp << ECAM_SLOPE_FRACTION_BITS; /* |S| < 2^15: S 2^16 as int32 bits */
+        t->ramp_at = t->position_at;
+        t->ramp_slope_kernel = t->slope_kernel;
+        t->position_kernel = ecam_position_ramp;
+        t->position_outside = ecam_position_ramp;
+        t->position_at = ecam_position_at_ramp;
+        t->lookup_at = ecam_lookup_at_ramp;
+        t->slope_kernel = ecam_slope_ramp;
+    }
 }
 
 /* Every check of FORMAT.md in its order; on success the prepared table in *t. */
@@ -2007,6 +2106,10 @@ static void ecam_pair_write(volatile ecam_table *dst, const ecam_table *src)
     dst->out_rshift = src->out_rshift;
     dst->slope_preshift = src->slope_preshift;
     dst->slope_out_shift = src->slope_out_shift;
+    dst->ramp_at = src->ramp_at;
+    dst->ramp_slope_kernel = src->ramp_slope_kernel;
+    dst->ramp = src->ramp;
+    dst->ramp_slope = src->ramp_slope;
 }
 
 /* Validates into a local table, then (only if valid and the spare is free) writes the spare and
@@ -2326,6 +2429,16 @@ static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m)
     return ecam_i32((uint32_t)p->kernel(p, (int64_t)local) + term);
 }
 
+/* A version-3 table's kernel: the ramp's wrap and term (ecam_ramp_wrap), then the degree's
+ * kernel on a master inside [0, M). */
+static int32_t ecam_poly_ramp(const ecam_poly *p, int64_t m)
+{
+    uint32_t term = 0u;
+    const uint32_t local = ecam_ramp_wrap(p->table, m, &term);
+
+    return ecam_i32((uint32_t)p->ramp_kernel(p, (int64_t)local) + term);
+}
+
 /* |x| of an int64 below 2^63 in magnitude, as uint64 (the proof keeps c_k far from -2^63). */
 static uint64_t ecam_magnitude(int64_t x)
 {
@@ -2453,6 +2566,10 @@ int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t bu
     } else {
         p->kernel = pow2 ? ecam_poly_quintic_pow2 : ecam_poly_quintic;
     }
+    if (t->ramp != 0u) { /* version 3: the kernel runs inside the ramp's */
+        p->ramp_kernel = p->kernel;
+        p->kernel = ecam_poly_ramp;
+    }
     return (int)ECAM_OK;
 }
 
@@ -2468,7 +2585,7 @@ int32_t ecam_poly_position(const ecam_poly *p, int64_t master_counts)
 /* Status names                                                                               */
 /* ------------------------------------------------------------------------------------------ */
 
-/* Names indexed by -status (0 .. 35). */
+/* Names indexed by -status (0 .. 36). */
 
 /* Stable identifiers for logs and test drivers; unknown codes get a generic name. */
 const char *ecam_status_name(int status)
@@ -2509,7 +2626,8 @@ const char *ecam_status_name(int status)
         "ECAM_E_UNINITIALISED",
         "ECAM_E_BUSY",
         "ECAM_E_NET_STROKE",
-        "ECAM_E_BUFFER"};
+        "ECAM_E_BUFFER",
+        "ECAM_E_RAMP"};
 
     const size_t names = sizeof ecam_status_names / sizeof ecam_status_names[0];
     const int count = (int)names;

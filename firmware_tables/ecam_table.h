@@ -1,5 +1,5 @@
 /*
- * ecam_table.h - C99 reference runtime for ecam cam tables, format versions 1 and 2.
+ * ecam_table.h - C99 reference runtime for ecam cam tables, format versions 1, 2 and 3.
  *
  * The blob layout, the loader's rules and the integer lookup arithmetic are specified in
  * FORMAT.md; this runtime follows it bit for bit, so it agrees exactly with the Python
@@ -13,6 +13,10 @@
  * the position then adds floor((k N + floor(D/2)) / D) for the k whole periods passed
  * (FORMAT.md step 7) and is returned as the int32 two's-complement wrap of that exact value, as
  * a CiA 402 position rolls over. The slope has no net term.
+ *
+ * Ramp (format version 3): a large net stroke stores its data relative to its ramp, S = floor(N /
+ * (D M)) whole counts per master count, so that the stored positions keep their fraction bits in
+ * int32; the position adds S * (m mod M), the slope S * 2^16 (FORMAT.md step 8).
  *
  * Failed and uninitialised tables: a table whose ecam_table_init failed, and a zero-filled table
  * that was never initialised (static storage), are "not ready". Every lookup on them returns
@@ -37,7 +41,7 @@
 extern "C" {
 #endif
 
-#define ECAM_FORMAT_VERSION 2 /* the newest blob format read; versions 1 and 2 load */
+#define ECAM_FORMAT_VERSION 3 /* the newest blob format read; versions 1, 2 and 3 load */
 #define ECAM_HEADER_BYTES 64
 
 /* Position and slope that every lookup on a table that is not ready returns (no accepted table
@@ -47,7 +51,7 @@ extern "C" {
 /*
  * Result of ecam_table_init: 0, or the negative code of the first rule of FORMAT.md the blob
  * breaks. Every rejection rule has its own code; the loader checks them in FORMAT.md's order:
- * the envelope (-1..-5), the field rules (-10..-24, then -34), the length (-7), the payload CRC
+ * the envelope (-1..-5), the field rules (-10..-24, then -34, -36), the length (-7), the payload CRC
  * (-8), then the overflow proof (-25..-31).
  */
 typedef enum ecam_status {
@@ -55,7 +59,7 @@ typedef enum ecam_status {
     /* envelope */
     ECAM_E_SHORT = -1,       /* length shorter than the 64-byte header */
     ECAM_E_MAGIC = -2,       /* bytes 0..3 are not "ECAM" */
-    ECAM_E_VERSION = -3,     /* format_version is neither 1 nor 2 */
+    ECAM_E_VERSION = -3,     /* format_version is not 1, 2 or 3 */
     ECAM_E_HEADER_SIZE = -4, /* header_bytes is not 64 */
     ECAM_E_HEADER_CRC = -5,  /* header_crc32 does not match bytes 0..59 */
     ECAM_E_FIELD = -6,       /* no longer returned: each field rule has its own code below */
@@ -92,7 +96,9 @@ typedef enum ecam_status {
     /* version 2 (checked after the field rules, before the length) */
     ECAM_E_NET_STROKE = -34, /* net stroke N/D not reduced, D = 0, |N/D| >= 2^31, or not periodic */
     /* the expanded form (ecam_poly_init; not a loader rule) */
-    ECAM_E_BUFFER = -35 /* the caller's buffer is smaller than ecam_poly_bytes(table) */
+    ECAM_E_BUFFER = -35, /* the caller's buffer is smaller than ecam_poly_bytes(table) */
+    /* version 3 (checked after ECAM_E_NET_STROKE, before the length) */
+    ECAM_E_RAMP = -36 /* version 3 without a net stroke, or its ramp S beyond +-(2^15 - 1) */
 } ecam_status;
 
 typedef struct ecam_table ecam_table;
@@ -161,6 +167,12 @@ struct ecam_table {
     uint8_t out_rshift;                   /* 32-bit cores' final shift: S - 32 if S > 32, else 0 */
     uint8_t slope_preshift;               /* P */
     uint8_t slope_out_shift;              /* 16 + F + W - P */
+    /* version 3 (zero otherwise): the ramp S of step 8 and the degree's own continuations, which
+     * the ramp's kernels call with its term added */
+    ecam_position_at_kernel ramp_at;      /* the degree's position_at */
+    ecam_slope_kernel ramp_slope_kernel;  /* the degree's slope kernel */
+    uint32_t ramp;                        /* S, as int32 bits */
+    uint32_t ramp_slope;                  /* S * 2^16, as int32 bits */
 };
 
 /*
@@ -276,6 +288,7 @@ struct ecam_poly {
     uint8_t narrow_lshift;     /* 31 - F: the narrow kernels' fraction tau 2^(31-F) */
     uint8_t outside;           /* past [0, M): 0 the wrap, 1 the wrap and a whole net stroke
                                   (both inline), 2 the clamp or a fractional net stroke */
+    ecam_poly_kernel ramp_kernel; /* version 3: the kernel the ramp's kernel calls (else NULL) */
 };
 
 /* Bytes of int64 buffer the expansion of t needs; 0 when t is NULL or not ready. */

@@ -1,4 +1,4 @@
-"""Independent pure-Python writer and reference lookup for ecam table blobs (FORMAT.md, versions 1 and 2).
+"""Independent pure-Python writer and reference lookup for ecam table blobs (FORMAT.md, versions 1 to 3).
 
 This is a test helper, not a test file. It is written straight from firmware_tables/FORMAT.md and
 imports nothing from ``ecam``, so it serves as a second oracle next to ``ecam.CamTable``:
@@ -95,6 +95,12 @@ class Table:
     curvature: tuple = ()
     net_num: int = 0  # net stroke N/D counts per period (format version 2 when N != 0)
     net_den: int = 1
+    ramp: bool = False  # format version 3: the data relative to the ramp S m (FORMAT.md step 8)
+
+    @property
+    def ramp_slope(self) -> int:
+        """S = floor(N / (D M)) for version 3, else 0."""
+        return self.net_num // (self.net_den * self.master_counts) if self.ramp else 0
 
     @property
     def points(self) -> int:
@@ -130,7 +136,7 @@ class Table:
         payload = self.payload()
         return {
             "magic": MAGIC,
-            "format_version": 2 if self.net_num else FORMAT_VERSION,
+            "format_version": 3 if self.ramp else 2 if self.net_num else FORMAT_VERSION,
             "header_bytes": HEADER_BYTES,
             "degree": self.degree,
             "flags": 1 if self.periodic else 0,
@@ -148,7 +154,7 @@ class Table:
             "tau_recip": self.tau_recip,
             "payload_bytes": len(payload),
             "payload_crc32": zlib.crc32(payload),
-            "reserved_48": struct.pack("<qI", self.net_num, self.net_den) if self.net_num else bytes(12),
+            "reserved_48": struct.pack("<qI", self.net_num, self.net_den) if self.net_num or self.ramp else bytes(12),
         }
 
 
@@ -238,8 +244,9 @@ def reference_lookup(table: Table, m: int) -> tuple:
     if table.net_num:
         turns = m // table.master_counts
         position += (turns * table.net_num + table.net_den // 2) // table.net_den
+        position += table.ramp_slope * (m % table.master_counts)  # step 8 (version 3)
         position = (position + 2**63) % 2**64 - 2**63
-    return position, slope
+    return position, slope + table.ramp_slope * 2**SLOPE_FRACTION_BITS
 
 
 def int32_wrap(value):
@@ -365,7 +372,7 @@ def proof_failure(table: Table):
         s = -(-q // 2**P)  # ceil(q / 2^P)
         if s * R >= two63:
             return "ECAM_E_SLOPE_PRODUCT", i
-        if s * R > (2**31 - 1) * 2 ** (SLOPE_FRACTION_BITS + F + W - P):
+        if s * R > (2**31 - 1 - abs(table.ramp_slope) * 2**SLOPE_FRACTION_BITS) * 2 ** (SLOPE_FRACTION_BITS + F + W - P):
             return "ECAM_E_SLOPE_RANGE", i
     return None
 

@@ -54,7 +54,7 @@ STATUS_NAMES = {
     -24: "ECAM_E_PAYLOAD_BYTES", -25: "ECAM_E_POINT_RANGE", -26: "ECAM_E_HORNER_RANGE",
     -27: "ECAM_E_SUM_RANGE", -28: "ECAM_E_POSITION_RANGE", -29: "ECAM_E_SLOPE_HORNER_RANGE",
     -30: "ECAM_E_SLOPE_PRODUCT", -31: "ECAM_E_SLOPE_RANGE", -32: "ECAM_E_UNINITIALISED",
-    -33: "ECAM_E_BUSY", -34: "ECAM_E_NET_STROKE", -35: "ECAM_E_BUFFER",
+    -33: "ECAM_E_BUSY", -34: "ECAM_E_NET_STROKE", -35: "ECAM_E_BUFFER", -36: "ECAM_E_RAMP",
 }  # fmt: skip
 CODES = {name: code for code, name in STATUS_NAMES.items()}
 OK, E_SHORT, E_MAGIC, E_VERSION = 0, -1, -2, -3
@@ -369,7 +369,7 @@ def test_misaligned_blob_and_api(build_dir):
         assert head["ready_state"] == "ready=1 status=0"
         for code, name in STATUS_NAMES.items():
             assert head[f"name{code}"] == name
-        assert head["name1"] == head["name-36"] == head["name-100"] == "ECAM_E_UNKNOWN"
+        assert head["name1"] == head["name-37"] == head["name-100"] == "ECAM_E_UNKNOWN"
 
 
 API_HARNESS = r"""
@@ -422,7 +422,7 @@ int main(int argc, char **argv)
     code = ecam_table_init(&reinit, broken, len);
     printf("reinit_failed=%d ready=%d %d\n", code, ecam_table_ready(&reinit),
            (int)ecam_table_position(&reinit, 0));
-    for (code = -36; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
+    for (code = -37; code <= 1; code++) printf("name%d=%s\n", code, ecam_status_name(code));
     printf("name-100=%s\n", ecam_status_name(-100));
     printf("misaligned_init=%d\n", ecam_table_init(&t, blob, len));
     printf("ready_state=ready=%d status=%d\n", ecam_table_ready(&t), ecam_table_status(&t));
@@ -560,7 +560,7 @@ def field_rule_set() -> list:
 
     # The envelope checks, in FORMAT.md order.
     add("magic", E_MAGIC, magic=b"ECAm")
-    for version in (0, 3, 0x0101, 0x0201):
+    for version in (0, 4, 0x0103, 0x0201):
         add(f"version{version}", E_VERSION, format_version=version)
     for size in (0, 63, 65, 128):
         add(f"header_bytes{size}", E_HEADER_SIZE, header_bytes=size)
@@ -684,6 +684,15 @@ def field_rule_set() -> list:
     add("version2_reserved29", CODES["ECAM_E_RESERVED"], table=zero_cubic, reserved_29=b"\x01\x00\x00",
         **net(1, 1))  # fmt: skip
     add("version1_net_bytes", CODES["ECAM_E_RESERVED"], table=zero_cubic, reserved_48=struct.pack("<qI", 1, 1))
+    # version 3: a net stroke whose ramp S = floor(N / (D M)) (M = 3000 here) is within +-(2^15 - 1)
+    for n, d, expected in ((360000, 1, OK), (0, 1, "ECAM_E_RAMP"), (32767 * 3000, 1, OK),
+                           (32768 * 3000, 1, "ECAM_E_RAMP"), (-32767 * 3000, 1, OK),
+                           (-32767 * 3000 - 1, 1, "ECAM_E_RAMP"), (-1, 7, OK), (1, 1, OK),
+                           (720000, 2, "ECAM_E_NET_STROKE")):  # fmt: skip
+        add(f"ramp{n}/{d}", expected if expected == OK else CODES[expected], table=zero_cubic,
+            **dict(net(n, d), format_version=3))
+    add("ramp_not_periodic", CODES["ECAM_E_NET_STROKE"], table=zero_cubic,
+        **dict(net(1, 1, periodic=False), format_version=3))
     # the overflow proof: one blob per rule, its payload pushed past exactly that bound
     out += proof_rule_set()
     out.append(("valid", good, OK))
@@ -765,7 +774,7 @@ def table_from_blob(blob: bytes) -> cb.Table:
         position_bits=v["position_bits"], position=arrays[0],
         slope=arrays[1] if degree >= 3 else (), curvature=arrays[2] if degree == 5 else (),
         **(dict(zip(("net_num", "net_den"), struct.unpack("<qI", v["reserved_48"])))
-           if v["format_version"] == 2 else {}),
+           if v["format_version"] >= 2 else {}), ramp=v["format_version"] == 3,
     )  # fmt: skip
     assert cb.make_blob(table) == blob
     return table
@@ -1059,18 +1068,28 @@ def net_stroke_cases() -> list:
     rng = np.random.default_rng(934)
     out = []
     # every degree with a whole stroke (D = 1) and h = 6000 too (the linear kernel's own step 7)
-    cases = [(num, den, (1, 3, 5)[k % 3], ((2**20, 64), (360_000, 60), (3, 1), (2**31, 2))[k % 4])
+    cases = [(num, den, (1, 3, 5)[k % 3], ((2**20, 64), (360_000, 60), (3, 1), (2**31, 2))[k % 4], False)
              for k, (num, den) in enumerate(NET_STROKES)]
-    cases += [(-1234567, 1, degree, (360_000, 60)) for degree in (1, 3, 5)]
-    for num, den, degree, (M, N) in cases:
-        table = dataclasses.replace(cb.random_table(rng, degree, True, M, N), net_num=num, net_den=den)
+    cases += [(-1234567, 1, degree, (360_000, 60), False) for degree in (1, 3, 5)]
+    # version 3 (step 8): the data relative to the ramp S m, S = floor(N / (D M)) up to its edges
+    ramps = [(64 * 2**20 + 12345, 1, 5, (2**20, 64)), (-(5 * 360_000) + 7, 3, 3, (360_000, 60)),
+             (1024 * 2**20, 1, 1, (2**20, 64)), (32767 * 3000 + 1, 1, 5, (3000, 2)), (-32767 * 3000, 1, 3, (3000, 3)),
+             (1080001, 3, 1, (360_000, 60))]  # fmt: skip
+    cases += [(num, den, degree, shape, True) for num, den, degree, shape in ramps]
+    for num, den, degree, (M, N), ramp in cases:
+        # a ramp at its edge leaves the data's slope less than a count per master count of int32:
+        # data of zeros there, the ramp and the net term alone
+        edge = ramp and abs(num) // (den * M) > 2**14
+        table = dataclasses.replace(zero_table(degree, M, N) if edge else cb.random_table(rng, degree, True, M, N),
+                                    net_num=num, net_den=den, ramp=ramp)
+        assert cb.proof_failure(table) is None, (num, den, degree)
         queries = cb.random_queries(rng, table, 4000)
         expected = np.array([cb.reference_lookup(table, m) for m in queries.tolist()], dtype=np.int64)
         cam = CamTable.from_bytes(cb.make_blob(table))
         python = np.stack([np.asarray(cam.lookup(queries), dtype=np.int64), np.asarray(cam.slope(queries))], 1)
         assert_same(queries, python, expected, f"CamTable vs tests/c_blobs.py, net {num}/{den}")
         expected[:, 0] = cb.int32_wrap(expected[:, 0])
-        out.append((f"net{num}/{den}-deg{degree}", cb.make_blob(table), queries, expected))
+        out.append((f"{'ramp' if table.ramp else 'net'}{num}/{den}-deg{degree}", cb.make_blob(table), queries, expected))
     return out
 
 

@@ -212,11 +212,12 @@ def test_the_format_and_the_loader_state_each_field_rule_once(drrd):
                    for value in {0, 1, 2, 7, 30, 31, 41, 64, 127, getattr(f, name) - 1, getattr(f, name) + 1}
                    if 0 <= value < 2 ** (8 * struct.calcsize(code) - (code == "b"))]
         changes += [("net", 48, "qI", value) for value in [(45000, 2), (f.net_stroke_num, 0), (2**40, 1)]]
+        changes += [("ramp", 48, "qI", (0, 1))]  # version 3 without a net stroke
         for name, offset, code, value in changes:
             header = bytearray(blob[:64])
-            struct.pack_into("<" + code, header, offset, *(value if name == "net" else (value,)))
-            if name == "net":
-                struct.pack_into("<H", header, 4, 2)  # version 2 stores the net stroke
+            struct.pack_into("<" + code, header, offset, *(value if name in ("net", "ramp") else (value,)))
+            if name in ("net", "ramp"):
+                struct.pack_into("<H", header, 4, 2 if name == "net" else 3)  # versions 2 and 3 store it
             struct.pack_into("<I", header, 60, zlib.crc32(bytes(header[:60])))
             try:
                 CamTable.from_bytes(bytes(header) + blob[64:])
@@ -226,7 +227,9 @@ def test_the_format_and_the_loader_state_each_field_rule_once(drrd):
                 continue
             if loader.status not in format_rules:
                 continue  # a rule about the blob's own bytes (payload size), or the overflow proof
-            fields = dict(net_stroke_num=value[0], net_stroke_den=value[1]) if name == "net" else {name: value}
+            fields = dict(net_stroke_num=value[0], net_stroke_den=value[1]) if name in ("net", "ramp") else {name: value}
+            if name == "ramp":
+                fields["ramp"] = True
             with pytest.raises(TableFormatError) as info:
                 dataclasses.replace(f, **fields).validate()
             assert (info.value.status, f"blob {info.value} ({info.value.status})") == (loader.status, str(loader))

@@ -121,3 +121,20 @@ def test_prime_master_period_has_no_hang():
         compile_table(msine, interp="auto", tolerance=0.01, master_counts=2**31 - 1, slave_counts_per_unit=10)
     with pytest.raises(ecam.InputError, match="do not divide"):
         compile_table(msine, interp="cubic", points=1025, master_counts=2**31 - 1, slave_counts_per_unit=10)
+
+
+@pytest.mark.parametrize("stroke_counts", [2**24, -(2**27), 2**30 - 2**16, -(2**30) + 2**16])
+def test_any_net_stroke_up_to_2_30_counts_meets_one_count(stroke_counts):
+    """Issue 27: a periodic cam advancing up to 2^30 counts per period (either way) meets a 1-count
+    tolerance, stored relative to its ramp (format version 3) once absolute positions would keep
+    fewer than 10 fraction bits, and its certificate holds across the wrap."""
+    stroke = 45.0 if stroke_counts > 0 else -45.0
+    profile = CamProfile.from_segments([Segment.from_span(240.0, stroke, "modified_sine"), Segment.from_span(120.0)],
+                                       net_stroke=stroke)
+    table = compile_table(profile, interp="auto", tolerance="1 counts", master_counts=2**18,
+                          slave_counts_per_unit=abs(stroke_counts) / 45.0)
+    r = table.report
+    assert table.net_stroke == stroke_counts and table.format_version == 3
+    assert table.format.ramp_slope == stroke_counts // 2**18 and table.format.position_bits >= 2
+    assert r["max_error_counts"] <= r["predicted_error_counts"] <= 1.0
+    assert r["wrap_max_error_counts"] <= r["predicted_error_counts"]

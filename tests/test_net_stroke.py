@@ -345,7 +345,7 @@ def test_slave_positions_pass_2_to_the_31_counts():
 def test_version_2_stores_the_net_stroke_in_the_header():
     table = compile_table(knife(slave_counts_per_unit=1000.0001), interp="cubic", tolerance="3 counts")
     blob = table.to_bytes()
-    assert FORMAT_VERSION == 2 and FORMAT_VERSIONS == (1, 2)
+    assert FORMAT_VERSION == 3 and FORMAT_VERSIONS == (1, 2, 3)
     assert struct.unpack_from("<H", blob, 4)[0] == 2
     assert struct.unpack_from("<qI", blob, 48) == (90000009, 250)
     back = CamTable.from_bytes(blob)
@@ -393,8 +393,9 @@ def test_the_loader_checks_the_net_stroke(num, den, status):
 def test_the_loader_refuses_a_net_stroke_on_a_table_that_is_not_periodic_and_unknown_versions():
     profile = CamProfile((Segment(0, 90, 0, 10, "cycloidal"),), 90.0, False)
     blob = compile_table(profile, interp="linear", points=9, master_counts=2**12).to_bytes()
-    for version, net, status in [(2, (5, 1), "ECAM_E_NET_STROKE"), (2, (0, 1), None), (3, (0, 0), "ECAM_E_VERSION"),
-                                 (1, (5, 1), "ECAM_E_RESERVED")]:
+    for version, net, status in [(2, (5, 1), "ECAM_E_NET_STROKE"), (2, (0, 1), None), (4, (0, 0), "ECAM_E_VERSION"),
+                                 (1, (5, 1), "ECAM_E_RESERVED"), (3, (5, 1), "ECAM_E_NET_STROKE"),
+                                 (3, (0, 1), "ECAM_E_RAMP")]:
         header = bytearray(blob[:64])
         struct.pack_into("<H", header, 4, version)
         struct.pack_into("<qI", header, 48, *net)

@@ -27,6 +27,15 @@ VECTOR_SEED = 20261121
 EXPORTS = (("codesys", None), ("twincat-cnc", "linear"), ("twincat-cnc", "cubic"), ("kollmorgen", None),
            ("elmo", None), ("technosoft", None), ("csv", "linear"), ("csv", "cubic"), ("csv", "quintic"))
 EXPORT_TOLERANCE = 1e-4  # of the stroke
+# Hard cases with golden vectors of their own (vectors/STEM.bin, .csv): the cross-cutter drum of
+# issue 27 on a 26-bit and a 30-bit encoder (2^B counts per revolution, 360 deg of net stroke per
+# cut, 2^20 master counts), stored relative to its ramp (format version 3).
+HARD_CASES = (
+    ("cross_cutter_drum26_quintic", "rotary_knife",
+     {"interp": "quintic", "points": 65, "master_counts": 2**20, "slave_counts_per_unit": 2**26 / 360}),
+    ("cross_cutter_drum30_cubic", "rotary_knife",
+     {"interp": "cubic", "points": 257, "master_counts": 2**20, "slave_counts_per_unit": 2**30 / 360}),
+)
 
 
 def golden_queries(table) -> np.ndarray:
@@ -64,6 +73,10 @@ def generate(cams_dir: Path) -> dict[str, bytes]:
             files[f"vectors/{stem}_{kind}.bin"] = fixed.to_bytes()
             files[f"vectors/{stem}_{kind}.csv"] = vectors_csv(fixed).encode()
         files.update(vendor_exports(profile, stem))
+    for stem, cam, settings in HARD_CASES:
+        table = compile_table(load_cam(cams_dir / f"{cam}.toml"), **settings, certify=False)
+        files[f"vectors/{stem}.bin"] = table.to_bytes()
+        files[f"vectors/{stem}.csv"] = vectors_csv(table).encode()
     return files
 
 

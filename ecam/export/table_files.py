@@ -83,10 +83,15 @@ def to_c_header(table: CamTable, name: str = "cam") -> str:
         f"    {f.points}u, {f.master_counts}u, {f.step_counts}u, {f.tau_recip}ull, 0x{table.crc32:08x}u,",
         "};",
         "",
-        _c_array(f"{ident}_position", table.positions, f"slave position, counts, Q{f.position_bits}"),
+        _c_array(f"{ident}_position", table.positions, f"slave position{_less_ramp(f)}, counts, Q{f.position_bits}"),
     ]
+    if f.ramp:
+        parts[-1:-1] = [f"/* Format version 3: the arrays hold the cam less its ramp of {f.ramp_slope} counts per master count"
+                        " (FORMAT.md step 8). */",
+                        f"#define {ident.upper()}_RAMP_COUNTS_PER_MASTER_COUNT ({f.ramp_slope})", ""]
     if table.slopes is not None:
-        parts += ["", _c_array(f"{ident}_slope", table.slopes, f"h * dy/dm, counts per step, Q{f.slope_bits}")]
+        parts += ["", _c_array(f"{ident}_slope", table.slopes,
+                               f"h * dy/dm{_less_ramp(f)}, counts per step, Q{f.slope_bits}")]
     if table.curvatures is not None:
         parts += ["", _c_array(f"{ident}_curvature", table.curvatures,
                                f"h^2 * d2y/dm2 / 2, counts per step^2, Q{f.curvature_bits}")]
@@ -107,10 +112,11 @@ def to_csv(table: CamTable) -> str:
     """One row per point: index, master counts, position counts, and the raw slope/curvature."""
     f = table.format
     out = io.StringIO()
-    header = ["index", "master_counts", f"position_q{f.position_bits}"]
+    less = f"_less_ramp_{f.ramp_slope}" if f.ramp else ""  # version 3: FORMAT.md step 8
+    header = ["index", "master_counts", f"position{less}_q{f.position_bits}"]
     columns = [np.arange(f.points), np.arange(f.points, dtype=np.int64) * f.step_counts, table.positions]
     if table.slopes is not None:
-        header.append(f"slope_q{f.slope_bits}")
+        header.append(f"slope{less}_q{f.slope_bits}")
         columns.append(table.slopes)
     if table.curvatures is not None:
         header.append(f"curvature_q{f.curvature_bits}")
@@ -147,7 +153,14 @@ def to_json(table: CamTable, name: str = "cam") -> str:
         "curvatures": None if table.curvatures is None else [int(v) for v in table.curvatures],
         "certificate": json_safe(table.report),
     }
+    if f.ramp:  # version 3: the arrays hold the cam less this ramp (FORMAT.md step 8)
+        document["ramp_counts_per_master_count"] = f.ramp_slope
     return json.dumps(document, indent=1, sort_keys=True) + "\n"
+
+
+def _less_ramp(f) -> str:
+    """How a version-3 table's arrays differ from the cam's (empty for versions 1 and 2)."""
+    return f" less the ramp {f.ramp_slope} m" if f.ramp else ""
 
 
 def json_safe(value):

@@ -12,57 +12,181 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from hil_sim.bus import frame_bits
 
 #: The CANopen bit rates (CiA 301, 7.2: bit timing; 10 kbit/s .. 1 Mbit/s) [bit/s].
 STANDARD_BITRATES = (10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000)
 
 
+#: Longest cycle of SYNC periods over which the frames' pattern repeats that the sizing lays out
+#: (the least common multiple of the transmission types); beyond it every frame is taken to go
+#: on the same SYNC (the unspread worst case).
+MAX_PATTERN_SYNCS = 100_000
+
+
+def frame_timing(frame) -> tuple[int, int, int]:
+    """``(data_length, every, phase)`` of a frame given as a data length (sent on every SYNC)
+    or as ``(data_length, every, phase)``: on the SYNCs whose number modulo ``every`` is
+    ``phase`` (:attr:`hil_sim.sync_schedule.TpdoTiming.phase`)."""
+    if isinstance(frame, int):
+        return frame, 1, 0
+    length, every, phase = frame
+    return int(length), int(every), int(phase) % int(every)
+
+
 def axis_bits(data_lengths) -> int:
-    """Bits one axis puts on the bus each SYNC period: its frames' ``data_lengths``."""
-    return sum(frame_bits(n) for n in data_lengths)
+    """Bits one axis puts on the bus in a SYNC period where all its frames go: its frames'
+    data lengths (or timings, :func:`frame_timing`)."""
+    return sum(frame_bits(frame_timing(n)[0]) for n in data_lengths)
 
 
-def size_bus(axes: dict, bitrate: int, cycle_s: float, load_percent: float) -> dict:
+class _Pattern:
+    """The bits of each SYNC period over one repetition of the frames' pattern."""
+
+    def __init__(self, frames: list, fixed_bits: int) -> None:
+        everys = {every for _, every, _ in frames}
+        self.length = math.lcm(*everys) if everys else 1
+        self.exact = self.length <= MAX_PATTERN_SYNCS
+        self.slots = np.full(self.length if self.exact else 1, fixed_bits, dtype=np.int64)
+        for frame in frames:
+            self.add(frame)
+
+    def add(self, frame) -> None:
+        length, every, phase = frame
+        if not self.exact:
+            self.slots += frame_bits(length)
+            return
+        if self.length % every:  # a new period: lay the pattern out again, longer
+            self.length = math.lcm(self.length, every)
+            if self.length > MAX_PATTERN_SYNCS:
+                self.exact = False
+                self.slots = np.array([self.slots.max()], dtype=np.int64)
+                self.add(frame)
+                return
+            self.slots = np.tile(self.slots, self.length // self.slots.size)
+        self.slots[phase::every] += frame_bits(length)
+
+    def with_frame(self, frame) -> int:
+        """The peak if ``frame`` were added."""
+        length, every, phase = frame
+        if not self.exact or self.length % every:
+            return int(self.slots.max()) + frame_bits(length)
+        return max(int(self.slots.max()),
+                   int(self.slots[phase::every].max()) + frame_bits(length))
+
+    @property
+    def peak(self) -> int:
+        return int(self.slots.max())
+
+
+def size_bus(axes: dict, bitrate: int, cycle_s: float, load_percent: float, *,
+             shared=(), sync_counter: bool = False, max_axes: int = 127) -> dict:
     """The bus a machine needs and what would still fit.
 
     Parameters
     ----------
-    axes : dict of str to list of int
-        Each axis's name and the data lengths of its cyclic frames per SYNC period.
+    axes : dict of str to list
+        Each axis's name and its cyclic frames: a data length (on every SYNC) or ``(data_length,
+        every, phase)`` (:func:`frame_timing`: a TPDO of transmission type ``every``).
     bitrate : int
         The bus's bit rate [bit/s].
     cycle_s : float
         The SYNC period [s].
     load_percent : float
         The load limit [% of the period's bits].
+    shared : sequence
+        Frames the machine sends once per SYNC for several axes (the master position every
+        drive-side axis consumes), as in ``axes``: counted once.
+    sync_counter : bool
+        The SYNC carries the CiA 301 counter (0x1019 > 0): one data byte.
+    max_axes : int
+        At most this many axes on the bus (CiA 301: node ids 1..127).
 
     Returns
     -------
     dict
-        ``bits_per_cycle`` (SYNC and every axis), ``budget_bits`` (the limit's share of the
-        period), ``load_percent`` (the cyclic traffic's share of the period), ``fits``,
-        ``min_cycle_s`` (at this bit rate), ``min_bitrate`` (at this period, and
-        ``min_standard_bitrate``: the lowest CiA 301 rate that fits, None if none), and
-        ``more_axes``: per axis, how many more axes like it fit (0 when none or over budget).
+        ``bits_per_cycle`` (the busiest SYNC period's: the SYNC, the shared frames and every
+        axis's frames that go on it), ``unspread_bits_per_cycle`` (without spreading: a SYNC
+        without the counter, so every TPDO goes on the same SYNC, each n-th), ``mean_bits_per_cycle``,
+        ``spread`` (whether the start values lower the peak), ``budget_bits`` (the limit's share
+        of the period), ``load_percent`` and ``unspread_load_percent`` (shares of the period),
+        ``fits``, ``min_cycle_s`` (at this bit rate), ``min_bitrate`` (at this period, and
+        ``min_standard_bitrate``: the lowest CiA 301 rate that fits, None if none),
+        ``axis_bits``, ``shared_bits``, and ``more_axes``: per axis, how many more axes like it
+        fit (each further one's TPDOs started on the SYNC that keeps the peak lowest when the
+        SYNC counter is on; 0 when none or over budget).
     """
     share = load_percent / 100.0
-    bits = {name: axis_bits(lengths) for name, lengths in axes.items()}
-    used = frame_bits(0) + sum(bits.values())
+    timed = {name: [frame_timing(f) for f in frames] for name, frames in axes.items()}
+    shared = [frame_timing(f) for f in shared]
+    sync = frame_bits(1 if sync_counter else 0)
+    fixed = sync + sum(frame_bits(length) for length, _, _ in shared)
+    bits = {name: sum(frame_bits(length) for length, _, _ in frames)
+            for name, frames in timed.items()}
+    pattern = _Pattern([f for frames in timed.values() for f in frames], fixed)
+    used = pattern.peak
+    # without spreading: no counter in the SYNC, every TPDO on the n-th SYNC after OPERATIONAL
+    unspread = fixed - sync + frame_bits(0) + sum(bits.values())
+    mean = fixed + sum(frame_bits(length) / every for frames in timed.values()
+                       for length, every, _ in frames)
     period_bits = bitrate * cycle_s
     budget = math.floor(period_bits * share + 1e-9)
     min_bitrate = used / (cycle_s * share) if share > 0 else math.inf
     standard = next((b for b in STANDARD_BITRATES if b >= min_bitrate - 1e-9), None)
+    room = max(0, max_axes - len(axes))
     return {
         "bits_per_cycle": used,
+        "unspread_bits_per_cycle": unspread,
+        "mean_bits_per_cycle": mean,
+        "spread": used < unspread,
         "budget_bits": budget,
         "load_percent": 100.0 * used / period_bits,
+        "unspread_load_percent": 100.0 * unspread / period_bits,
         "limit_percent": load_percent,
         "fits": used <= budget,
         "min_cycle_s": used / (bitrate * share) if share > 0 else math.inf,
         "min_bitrate": min_bitrate,
         "min_standard_bitrate": standard,
         "axis_bits": bits,
-        "more_axes": {name: max(0, (budget - used) // b) if b else None
-                      for name, b in bits.items()},
+        "shared_bits": sum(frame_bits(length) for length, _, _ in shared),
+        "sync_bits": sync,
+        "more_axes": {name: _more_axes(pattern, frames, budget, sync_counter, room)
+                      for name, frames in timed.items()},
     }
+
+
+def _more_axes(pattern: _Pattern, frames: list, budget: int, sync_counter: bool,
+               room: int) -> int:
+    """How many copies of an axis's frames still fit under ``budget``, each copy's TPDOs
+    started (with the SYNC counter) on the phase that keeps the peak lowest."""
+    trial = _Pattern([], 0)
+    trial.length, trial.exact, trial.slots = pattern.length, pattern.exact, pattern.slots.copy()
+    added = 0
+    while added < room:
+        placed = []
+        for length, every, phase in frames:
+            phases = range(every) if sync_counter and every > 1 else (phase,)
+            best = min(phases, key=lambda p: (trial.with_frame((length, every, p)), p))
+            placed.append((length, every, best))
+            trial.add((length, every, best))
+        if trial.peak > budget:
+            return added
+        added += 1
+    return added
+
+
+def spreading_text(sizing: dict) -> str:
+    """The sizing's spreading and sharing in words ("" when the machine uses neither): the
+    busiest SYNC period with and without spreading, and the shared master position."""
+    parts = []
+    if sizing["unspread_bits_per_cycle"] != sizing["bits_per_cycle"]:
+        parts.append(f"busiest SYNC period {sizing['bits_per_cycle']} bits "
+                     f"({sizing['load_percent']:.3g} %) with the TPDOs spread by the SYNC counter, "
+                     f"{sizing['unspread_bits_per_cycle']} bits "
+                     f"({sizing['unspread_load_percent']:.3g} %) without")
+    if sizing["shared_bits"]:
+        parts.append(f"the master position goes once for every drive-side axis "
+                     f"({sizing['shared_bits']} bits per SYNC period)")
+    return "; ".join(parts)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, replace
 
+from hil_sim.bus_sizing import spreading_text
 from hil_sim.report import Check, Report, _clean
 
 
@@ -139,4 +140,4 @@ def sizing_text(sizing: dict, cycle_s: float, bitrate: int) -> str:
             f"{1e3 * sizing['min_cycle_s']:.3g} ms at {bitrate} bit/s, or at least "
             f"{sizing['min_bitrate']:.6g} bit/s at {1e3 * cycle_s:g} ms ("
             + (f"{standard} bit/s standard" if standard else "beyond 1 Mbit/s") + "); fits "
-            + (more or "no more axes"))
+            + (more or "no more axes") + "".join(f"; {s}" for s in [spreading_text(sizing)] if s))

@@ -114,6 +114,8 @@ from hil_sim.event_spec import parse_events
 from hil_sim.faults import FRAME_KINDS, Faults
 from hil_sim.filters import check_notch_hz
 from hil_sim.sizing_spec import DRIVE_SIZING_KEYS, GEARHEAD_KEYS, SizingSpec, parse_sizing
+from hil_sim.sync_schedule import (MASTER_POSITION_PDOS, MAX_SYNC_COUNTER_OVERFLOW,
+                                   MAX_TRANSMISSION_TYPE, check_sync_start)
 
 #: Where the cam runs: the controller streams CSP targets, or the drive runs the table itself.
 CAM_MODES = ("controller", "drive")
@@ -247,6 +249,8 @@ class DriveSpec:
     effects: tuple[tuple[str, float | bool], ...] = ()
     speed_symmetrization: bool = False
     friction_feedforward: bool = False
+    tpdo_transmission_type: int = 1  # CiA 301 7.5.2.37: the TPDOs go on every n-th SYNC
+    tpdo_sync_start: int = 0  # CiA 301 7.5.2.37 sub-index 06h: 0 unused
 
     @property
     def control_rate_hz(self) -> float:
@@ -275,6 +279,8 @@ class BusSpec:
 
     bitrate: int = 1_000_000
     faults: object = None
+    sync_counter_overflow: int = 0  # CiA 301 7.5.2.22 (0x1019): 0, the SYNC carries no counter
+    master_position_pdo: str = "per_axis"  # drive-side axes: "shared", one PDO all consume
 
 
 @dataclass(frozen=True)
@@ -459,9 +465,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
     # [[event]]: cams switched, phase shifts, cam-out while the machine runs (hil_sim.events);
     # [[tappet]]: digital cam switches on the master, their edges checked (hil_sim.tappet_edges)
     events = parse_events(top, lambda raw, written: _cam_file(raw, written, base, "cam"))
+    bus = _bus(top)
+    check_sync_start(top, drive, bus)
     return Scene(name=name, path=path, cam_mode=cam_mode, master=master,
                  cam=cam_spec, drive=drive, mechanics=_mechanics(top, sizing),
-                 bus=_bus(top), limits=_limits(top), duration=_duration(top, drive.cycle_s),
+                 bus=bus, limits=_limits(top), duration=_duration(top, drive.cycle_s),
                  description=description, fidelity=fidelity, sizing=sizing, events=events,
                  tappets=read_tappets(top))
 
@@ -552,8 +560,8 @@ def _cam_file(raw: Fields, written: str, base: Path, key: str = "file") -> Path:
 def _drive(top: Fields) -> DriveSpec:
     raw = top.table("drive", {"node_id", "cycle_s", "substeps", "following_error_window",
                               "model", "gains", "feedforward", "speed_symmetrization",
-                              "friction_feedforward", *DRIVE_FIELDS,
-                              *DRIVE_SIZING_KEYS})
+                              "friction_feedforward", "tpdo_transmission_type",
+                              "tpdo_sync_start", *DRIVE_FIELDS, *DRIVE_SIZING_KEYS})
     gains_raw = raw.table("gains", GAIN_BANDWIDTH_KEYS + GAIN_KEYS)
     gains = tuple((key, gains_raw.number(key, minimum=0.0))
                   for key in GAIN_BANDWIDTH_KEYS + GAIN_KEYS if key in gains_raw)
@@ -579,7 +587,11 @@ def _drive(top: Fields) -> DriveSpec:
         # P-AXIS-00361 = 0; hil_sim.control.DriveEffects), and as measured on the shipped scenes
         # (docs/tuning.md): neither lowers every scene's tracking error
         speed_symmetrization=raw.boolean("speed_symmetrization", default=False),
-        friction_feedforward=raw.boolean("friction_feedforward", default=False))
+        friction_feedforward=raw.boolean("friction_feedforward", default=False),
+        tpdo_transmission_type=raw.integer("tpdo_transmission_type", default=1, minimum=1,
+                                           maximum=MAX_TRANSMISSION_TYPE),
+        tpdo_sync_start=raw.integer("tpdo_sync_start", default=0, minimum=0,
+                                    maximum=MAX_SYNC_COUNTER_OVERFLOW))
 
 
 def _drive_effects(raw: Fields) -> tuple:
@@ -626,8 +638,14 @@ def _mechanics(top: Fields, sizing: SizingSpec = SizingSpec()) -> MechanicsSpec:
 
 
 def _bus(top: Fields) -> BusSpec:
-    raw = top.table("bus", {"bitrate", "faults"})
+    raw = top.table("bus", {"bitrate", "faults", "sync_counter_overflow", "master_position_pdo"})
     bitrate = raw.integer("bitrate", default=1_000_000, minimum=10_000, maximum=1_000_000)
+    overflow = raw.integer("sync_counter_overflow", default=0, minimum=0,
+                           maximum=MAX_SYNC_COUNTER_OVERFLOW)
+    if overflow == 1:  # CiA 301 7.5.2.22: 1 is reserved
+        raise raw.error(f"{raw.name('sync_counter_overflow')}: 1 should be 0 (no SYNC counter) "
+                        f"or 2..{MAX_SYNC_COUNTER_OVERFLOW} (CiA 301 0x1019: 1 is reserved)")
+    master_pdo = raw.choice("master_position_pdo", MASTER_POSITION_PDOS, default="per_axis")
     faults_raw = raw.table("faults", {f.name for f in fields(Faults)})
     # Faults checks its own values; the reader supplies the file's names for its messages.
     kwargs = {key: value for key, value in faults_raw.raw.items() if key != "drop"}
@@ -645,7 +663,8 @@ def _bus(top: Fields) -> BusSpec:
         kwargs["drop"] = tuple(entries)
     with faults_raw.calling():
         faults = Faults(**kwargs)
-    return BusSpec(bitrate=bitrate, faults=faults)
+    return BusSpec(bitrate=bitrate, faults=faults, sync_counter_overflow=overflow,
+                   master_position_pdo=master_pdo)
 
 
 def _limits(top: Fields) -> LimitsSpec:

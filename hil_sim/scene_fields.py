@@ -19,6 +19,7 @@ from hil_sim.effects import (DEFAULT_BACKLASH_ARCMIN, DEFAULT_CURRENT_LOOP_HZ, D
                              VELOCITY_FILTER_SHARE)
 from hil_sim.event_spec import ACTIONS, ACTIVATIONS, MAX_EVENT_POSITION, MAX_EVENTS, SCALING_RANGE
 from hil_sim.faults import FRAME_KINDS, MAX_SYNC_JITTER_S
+from hil_sim.sync_schedule import MASTER_POSITION_PDOS, MAX_SYNC_COUNTER_OVERFLOW, MAX_TRANSMISSION_TYPE
 from hil_sim.scene import (CAM_MODES, EFFECT_RANGES, MAX_BANDWIDTH_HZ, MAX_CYCLES, MAX_LEAD_CYCLES,
                            MAX_MASTER_SPEED, MAX_SETTLE_S, MECHANICS_MINIMA, MECHANICS_RANGES, MIN_LOAD_INERTIA,
                            MIN_MASTER_SPEED, PROFILES, SLAVE_UNITS_PER_RADIAN_RANGE)
@@ -331,6 +332,17 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("drive", "following_error_window", "integer", "The following error window (0x6065): "
           "beyond it the drive faults.", unit="counts", default=100000, minimum=1,
           maximum=0xFFFFFFFF, source=_PARSER),
+    Field("drive", "tpdo_transmission_type", "integer", "The drive's TPDOs go on every n-th SYNC "
+          "(0x1800..0x1803 sub 2): fewer frames per SYNC; the controller reads the following error "
+          "and statusword on those SYNCs only (the bus-free path alike).", default=1, minimum=1,
+          maximum=MAX_TRANSMISSION_TYPE, source="CiA 301 7.5.2.37 (types 1..240: synchronous, cyclic)"),
+    Field("drive", "tpdo_sync_start", "integer", "The SYNC start value (0x1800..0x1803 sub 6): the "
+          "TPDOs first go on the SYNC whose counter is this, then every n-th; give the axes of a "
+          "machine different ones to spread their TPDOs over the SYNCs. 0: not used.", default=0,
+          minimum=0, maximum=MAX_SYNC_COUNTER_OVERFLOW,
+          limits="0 without bus.sync_counter_overflow, else <= it",
+          when=(("bus.sync_counter_overflow", MAX_SYNC_COUNTER_OVERFLOW),),
+          source="CiA 301 7.5.2.37 (sub-index 06h)"),
     Field("drive", "model", "choice", "The plant model: measured (auto), rigid or two-mass.",
           default="auto", choices=MODELS, source="hil_sim.control"),
     Field("drive", "feedforward", "choice", "Where the velocity feed-forward comes from: the velocity "
@@ -413,6 +425,16 @@ SCENE_FIELDS: tuple[Field, ...] = (
     Field("bus", "bitrate", "integer", "The CAN bitrate: the rig adds up each cycle's frame bits "
           "(worst-case bit stuffing) against it.", unit="bit/s", default=1_000_000, minimum=10_000,
           maximum=1_000_000, source="CiA 301 bit rates (10 kbit/s .. 1 Mbit/s)"),
+    Field("bus", "sync_counter_overflow", "integer", "The SYNC counter (0x1019): 0, the SYNC carries "
+          "no data; 2..240, it carries a 1-byte counter running 1..this value (10 bits more per "
+          "SYNC), which drive.tpdo_sync_start needs.", default=0, minimum=0,
+          maximum=MAX_SYNC_COUNTER_OVERFLOW, limits="not 1 (reserved)",
+          source="CiA 301 7.5.2.22"),
+    Field("bus", "master_position_pdo", "choice", "Drive-side axes: one master position RPDO per "
+          "axis, or one PDO on one COB-ID that every drive-side drive consumes (counted once on the "
+          "bus); shared needs the same master position on every drive-side axis (same phase and "
+          "master_counts).", default="per_axis", choices=MASTER_POSITION_PDOS,
+          source="CiA 301 7.2.2 (one producer, any number of consumers of a PDO)"),
     Field("bus", "faults", "table", "The `[bus.faults]` table.", default_text="no faults"),
     Field("bus.faults", "seed", "integer", "Seed of the fault generator: same seed, same faults.",
           default=0, minimum=0, source="hil_sim.faults"),

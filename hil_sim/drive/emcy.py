@@ -16,6 +16,9 @@ EMCY_PDO_LENGTH = 0x8210
 EMCY_INTERNAL_SOFTWARE = 0x6100
 # CiA 301, emergency error codes: 81xx communication. The SYNC stopped arriving.
 EMCY_COMMUNICATION = 0x8100
+# CiA 301, emergency error codes: 8240 unexpected SYNC data length (the code CANopenNode reports a
+# SYNC of the wrong length for 0x1019 with, 301/CO_Emergency.h CO_EMC_SYNC_DATA_LENGTH).
+EMCY_SYNC_DATA_LENGTH = 0x8240
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_COMMUNICATION = 0x10
 ERROR_REGISTER_PROFILE = 0x20

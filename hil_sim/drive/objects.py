@@ -40,6 +40,8 @@ COB_ID_SYNC = ObjectKey(0x1005)
 COMMUNICATION_CYCLE_PERIOD = ObjectKey(0x1006)  # us; 0: SYNC not supervised
 COB_ID_EMCY = ObjectKey(0x1014)
 PRODUCER_HEARTBEAT_TIME = ObjectKey(0x1017)  # ms
+#: CiA 301 7.5.2.22: 0, the SYNC has no data; 2..240, it carries a counter that runs 1..this value.
+SYNC_COUNTER_OVERFLOW = ObjectKey(0x1019)
 
 # CiA 301 PDO parameters: four RPDOs and four TPDOs, numbered from these indexes.
 RPDO_COMMUNICATION_PARAMETER = 0x1400
@@ -51,6 +53,7 @@ MAPPING_PARAMETERS = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))  # RPDO, TPD
 COMMUNICATION_PARAMETERS = (range(0x1400, 0x1600), range(0x1800, 0x1A00))  # RPDO, TPDO
 COB_ID_USED_BY_PDO = 1  # subindex of a communication parameter
 TRANSMISSION_TYPE = 2  # subindex of a communication parameter
+SYNC_START_VALUE = 6  # subindex of a TPDO communication parameter (CiA 301 7.5.2.37)
 NUMBER_OF_MAPPED_OBJECTS = 0  # subindex of a mapping parameter
 
 # CiA 301 data types (the EDS's DataType) -> struct code, for the types PDOs carry: BOOLEAN,

@@ -17,7 +17,8 @@ from hil_sim.drive.emcy import EMCY_PDO_LENGTH, ERROR_REGISTER_COMMUNICATION
 from hil_sim.drive.objects import (
     CAN_ID_MASK, COB_ID_SYNC, COB_ID_USED_BY_PDO, COMMUNICATION_PARAMETERS, MAPPING_PARAMETERS,
     NUMBER_OF_MAPPED_OBJECTS, PDO_NOT_VALID, RPDO_COMMUNICATION_PARAMETER, RPDO_MAPPING_PARAMETER,
-    STRUCT_CODES, TPDO_COMMUNICATION_PARAMETER, TPDO_MAPPING_PARAMETER, TRANSMISSION_TYPE, ObjectKey,
+    STRUCT_CODES, SYNC_START_VALUE, TPDO_COMMUNICATION_PARAMETER, TPDO_MAPPING_PARAMETER,
+    TRANSMISSION_TYPE, ObjectKey,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_MAP, ABORT_INVALID_VALUE, ABORT_PDO_LENGTH
 
@@ -41,20 +42,53 @@ RESTRICTED_CAN_IDS = frozenset([0x000, *range(0x001, 0x080), *range(0x101, 0x181
                                 *range(0x701, 0x780), *range(0x780, 0x800)])
 
 
+#: A synchronous TPDO's countdown before its first SYNC in OPERATIONAL, and while it waits for
+#: the SYNC whose counter equals its SYNC start value (the states CANopenNode's CO_TPDO_process,
+#: 301/CO_PDO.c, keeps in its syncCounter as 255 and 254).
+COUNTDOWN_UNSTARTED = -1
+COUNTDOWN_AWAITING_START = -2
+
+
 class Pdo:
-    """One PDO as the drive uses it: COB-ID, transmission type and a struct for its mapping."""
+    """One PDO as the drive uses it: COB-ID, transmission type, SYNC start value (TPDOs) and a
+    struct for its mapping."""
 
-    __slots__ = ("number", "cob_id", "trans_type", "keys", "codec", "length", "last", "syncs")
+    __slots__ = ("number", "cob_id", "trans_type", "start", "keys", "codec", "length", "last",
+                 "countdown")
 
-    def __init__(self, number, cob_id, trans_type, keys, codec):
+    def __init__(self, number, cob_id, trans_type, keys, codec, start=0):
         self.number = number
         self.cob_id = cob_id
         self.trans_type = trans_type
+        self.start = start
         self.keys = keys
         self.codec = codec
         self.length = codec.size
         self.last = None
-        self.syncs = 0
+        self.countdown = COUNTDOWN_UNSTARTED
+
+    def due(self, counter: int | None) -> bool:
+        """Whether this synchronous cyclic TPDO (type n, 1..240) goes on this SYNC.
+
+        CiA 301 7.5.2.37 (TPDO communication parameter): type n is sent on every n-th SYNC;
+        with the SYNC counter on (0x1019 > 0, ``counter`` the SYNC's counter byte) and a SYNC
+        start value s (sub-index 06h, 1..240) the SYNC whose counter equals s counts as the first
+        one received, so the first transmission is on it; without either the first is on the
+        n-th SYNC after entering OPERATIONAL. The same order as CANopenNode's CO_TPDO_process.
+        """
+        if self.countdown == COUNTDOWN_UNSTARTED:
+            self.countdown = (COUNTDOWN_AWAITING_START if counter is not None and self.start
+                              else self.trans_type)
+        if self.countdown == COUNTDOWN_AWAITING_START:
+            if counter != self.start:
+                return False
+            self.countdown = self.trans_type
+            return True
+        self.countdown -= 1
+        if self.countdown:
+            return False
+        self.countdown = self.trans_type
+        return True
 
 
 def mapped_object(objects, entry: int, transmit: bool) -> ODVariable:
@@ -95,6 +129,14 @@ def check_transmission_type(value: int) -> None:
         raise SdoAbortedError(ABORT_INVALID_VALUE)
 
 
+def check_sync_start_value(objects, index: int, value: int) -> None:
+    """A TPDO's SYNC start value (CiA 301 7.5.2.37, sub-index 06h): 0..240, written only while
+    the TPDO does not exist (bit 31 of its COB-ID set), else abort 0x06090030 (as CANopenNode's
+    OD_write_18xx)."""
+    if value > LAST_SYNCHRONOUS or not objects.stored(ObjectKey(index, COB_ID_USED_BY_PDO)) & PDO_NOT_VALID:
+        raise SdoAbortedError(ABORT_INVALID_VALUE)
+
+
 def check_pdo_write(objects, index: int, subindex: int, value: int) -> None:
     """Refuse PDO parameters the drive cannot use and mappings it cannot pack (CiA 301 abort
     codes)."""
@@ -103,6 +145,8 @@ def check_pdo_write(objects, index: int, subindex: int, value: int) -> None:
             check_cob_id(value)
         elif subindex == TRANSMISSION_TYPE:
             check_transmission_type(value)
+        elif subindex == SYNC_START_VALUE and index >= TPDO_COMMUNICATION_PARAMETER:
+            check_sync_start_value(objects, index, value)
         return
     if not any(index in area for area in MAPPING_PARAMETERS):
         return
@@ -184,8 +228,9 @@ class PdoEngine:
                     obj = mapped_object(self.objects, entry, transmit)
                     keys.append((obj.index, obj.subindex))
                     codes += STRUCT_CODES[obj.data_type]
+                start = stored(ObjectKey(comm_base + number, SYNC_START_VALUE)) if transmit else 0
                 pdo = Pdo(number + 1, cob & CAN_ID_MASK, trans_type, tuple(keys),
-                          struct.Struct(codes))
+                          struct.Struct(codes), start)
                 if transmit:
                     self.tpdos.append(pdo)
                 else:
@@ -242,20 +287,29 @@ class PdoEngine:
                 except SdoAbortedError:
                     pass  # a PDO has no answer: an invalid value is ignored
 
-    def send_sync_tpdos(self) -> None:
-        """At a SYNC: send the synchronous TPDOs that are due."""
+    def restart_sync_tpdos(self) -> None:
+        """Entering OPERATIONAL: the synchronous TPDOs count their SYNCs afresh (CiA 301
+        7.5.2.37; CANopenNode resets the count whenever the node is not operational)."""
+        for pdo in self.sync_tpdos:
+            pdo.countdown = COUNTDOWN_UNSTARTED
+
+    def send_sync_tpdos(self, counter: int | None = None) -> None:
+        """At a SYNC: send the synchronous TPDOs that are due (``counter``: the SYNC's counter
+        byte with 0x1019 > 0, else None)."""
         if self.nmt.state != OPERATIONAL:
             return
         values = self.values
         for pdo in self.sync_tpdos:
-            pdo.syncs += 1
-            if pdo.trans_type == SYNCHRONOUS_ACYCLIC or pdo.syncs >= pdo.trans_type:
-                pdo.syncs = 0
+            if pdo.trans_type == SYNCHRONOUS_ACYCLIC:
                 data = pdo.codec.pack(*[values[key] for key in pdo.keys])
-                if pdo.trans_type == SYNCHRONOUS_ACYCLIC and data == pdo.last:
+                if data == pdo.last:
                     continue
-                pdo.last = data
-                self.network.send_message(pdo.cob_id, data)
+            elif pdo.due(counter):
+                data = pdo.codec.pack(*[values[key] for key in pdo.keys])
+            else:
+                continue
+            pdo.last = data
+            self.network.send_message(pdo.cob_id, data)
 
     def send_event_tpdos(self) -> None:
         """Send the event-driven TPDOs whose data changed."""

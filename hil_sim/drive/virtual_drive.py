@@ -18,7 +18,7 @@ from hil_sim.drive.cia402 import (
 from hil_sim.control import AxisSetup, Gains, ServoAxis
 from hil_sim.drive.cam_slot import NO_ERROR_MESSAGE, CamSlot
 from hil_sim.drive.emcy import (
-    EMCY_COMMUNICATION, EMCY_INTERNAL_SOFTWARE, ERROR_REGISTER_COMMUNICATION,
+    EMCY_COMMUNICATION, EMCY_INTERNAL_SOFTWARE, EMCY_SYNC_DATA_LENGTH, ERROR_REGISTER_COMMUNICATION,
     ERROR_REGISTER_GENERIC, EmcyProducer,
 )
 from hil_sim.drive.nmt import NmtSlave
@@ -28,7 +28,8 @@ from hil_sim.drive.objects import (
     INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD, INTERPOLATION_TIME_PERIOD_VALUE,
     MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, MOTOR_RATED_TORQUE, NMT_COB_ID,
     PDO_PARAMETERS, POSITION_ACTUAL_VALUE, PROCESS_OBJECTS, PRODUCER_HEARTBEAT_TIME,
-    SDO_RECEIVE_COB_ID, SDO_TRANSMIT_COB_ID, TARGET_POSITION, TORQUE_ACTUAL_VALUE,
+    SDO_RECEIVE_COB_ID, SDO_TRANSMIT_COB_ID, SYNC_COUNTER_OVERFLOW, TARGET_POSITION,
+    TORQUE_ACTUAL_VALUE,
     VELOCITY_ACTUAL_VALUE, VELOCITY_OFFSET, interpolation_period_s, load_od,
 )
 from hil_sim.drive.pdo import PdoEngine, check_cob_id, check_pdo_write
@@ -36,7 +37,8 @@ from hil_sim.int32 import saturate_int32, wrap_int32
 from hil_sim.drive.power_state import PowerStateMachine
 from hil_sim.drive.runner import Runner
 from hil_sim.drive.sdo import (
-    ABORT_DEVICE_STATE, ABORT_VALUE_TOO_HIGH, ABORT_VALUE_TOO_LOW, DriveNode, DriveSdoServer,
+    ABORT_DEVICE_STATE, ABORT_INVALID_VALUE, ABORT_VALUE_TOO_HIGH, ABORT_VALUE_TOO_LOW, DriveNode,
+    DriveSdoServer,
     StoredObjects, check_range,
 )
 from ecam.mechanics import Mechanics
@@ -117,6 +119,9 @@ class VirtualDrive:
         self._wall_clock = False
         self._last_sync_wall: float | None = None  # wall time of the last SYNC (external master)
         self.sync_losses = 0  # SYNC losses detected
+        self.sync_length_errors = 0  # SYNCs of the wrong length for 0x1019, not taken as SYNCs
+        self._sync_length_reported = False
+        self._sync_counting = False  # 0x1019 > 0: every SYNC carries its counter
         # The live objects; one dict for the drive's lifetime, shared by every service.
         self.values: dict[tuple[int, int], object] = {}
 
@@ -230,8 +235,20 @@ class VirtualDrive:
         elif index == COB_ID_SYNC.index:
             check_cob_id(value, sync=True)
             self.pdo.dirty = True
+        elif index == SYNC_COUNTER_OVERFLOW.index:
+            self._check_sync_counter_overflow(value)
+            self._sync_counting = value != 0
         elif index == COMMUNICATION_CYCLE_PERIOD.index and self._last_sync_wall is not None:
             self._last_sync_wall = time.monotonic()  # a new period: its time-out counts from now
+
+    def _check_sync_counter_overflow(self, value: int) -> None:
+        """0x1019 (CiA 301 7.5.2.22): 0 or 2..240 (1 and 241..255 are reserved: abort
+        0x06090030), and written only while the communication cycle period 0x1006 is 0 (abort
+        0x08000022), as CANopenNode's OD_write_1019 does."""
+        if value == 1 or value > 240:
+            raise SdoAbortedError(ABORT_INVALID_VALUE)
+        if self.objects.stored(COMMUNICATION_CYCLE_PERIOD):
+            raise SdoAbortedError(ABORT_DEVICE_STATE)
 
     def _set_value(self, key, value) -> None:
         """Write a live object and run its side effects."""
@@ -279,6 +296,7 @@ class VirtualDrive:
         if state != OPERATIONAL:
             self.pdo.latched.clear()
         else:
+            self.pdo.restart_sync_tpdos()
             self.pdo.send_event_tpdos()
 
     def _reset(self, kind: str) -> None:
@@ -297,6 +315,7 @@ class VirtualDrive:
             self.objects.store(PRODUCER_HEARTBEAT_TIME, heartbeat)
         self.nmt.reset_heartbeat(self.objects.stored(PRODUCER_HEARTBEAT_TIME) / 1000.0)
         self._last_sync_wall = None
+        self._sync_counting = self.objects.stored(SYNC_COUNTER_OVERFLOW) != 0
         self.pdo.build()
 
     def _reset_application(self) -> None:
@@ -331,9 +350,21 @@ class VirtualDrive:
 
     # ----------------------------------------------------------------------------- cycle
     def _on_sync(self, can_id, data, timestamp) -> None:
+        # CiA 301 7.5.2.22 (0x1019): with the counter off the SYNC has no data, with it on one
+        # byte, the counter. A SYNC of the other length is not taken as one (CANopenNode's
+        # CO_SYNC_receive) and reported once, until a right one comes, with EMCY 0x8240
+        # (CiA 301 emergency error codes: unexpected SYNC data length).
+        counting = self._sync_counting
+        if len(data) != (1 if counting else 0):
+            self.sync_length_errors += 1
+            if not self._sync_length_reported:
+                self._sync_length_reported = True
+                self.emcy.send(EMCY_SYNC_DATA_LENGTH, ERROR_REGISTER_COMMUNICATION)
+            return
+        self._sync_length_reported = False
         if self._wall_clock:
             self._last_sync_wall = time.monotonic()
-        self.run_cycle(synchronous=True)
+        self.run_cycle(synchronous=True, counter=data[0] if counting else None)
 
     def _on_defect(self, what: str) -> None:
         """An exception escaped a handler (logged by the runner): fault with EMCY 0x6100."""
@@ -385,8 +416,9 @@ class VirtualDrive:
         keeps its own timer, synchronous RPDOs stay latched and no synchronous TPDO is sent."""
         self.run_cycle(synchronous=False)
 
-    def run_cycle(self, synchronous: bool = True) -> None:
-        """One interpolation period: latch RPDOs, run the axis, publish, send TPDOs."""
+    def run_cycle(self, synchronous: bool = True, counter: int | None = None) -> None:
+        """One interpolation period: latch RPDOs, run the axis, publish, send TPDOs
+        (``counter``: the SYNC's counter byte when 0x1019 turns the counter on)."""
         values = self.values
         if synchronous:
             self.pdo.apply_latched()
@@ -436,7 +468,7 @@ class VirtualDrive:
         self.nmt.service_heartbeat()
         self.node.sdo.service()
         if synchronous:
-            self.pdo.send_sync_tpdos()
+            self.pdo.send_sync_tpdos(counter)
         self.pdo.send_event_tpdos()
 
     # -------------------------------------------------------------------------- running

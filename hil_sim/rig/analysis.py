@@ -20,6 +20,7 @@ from hil_sim.rig.plan import PreparedRun
 from hil_sim.rig.stability import loop_stability_check
 from hil_sim.rig.event_checks import event_checks
 from hil_sim.rig.sizing_checks import fill_coupling, sizing_checks
+from hil_sim.sync_schedule import TpdoTiming
 
 
 def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
@@ -39,7 +40,7 @@ def analyse(run: PreparedRun, record: Record, setup=None) -> Report:
         resonance_excitation_check(run),
         bus_load_check(run, record),
         motor_saturation_check(run, record),
-        faults_check(record),
+        faults_check(record, run),
     ]
     if setup is not None:
         checks.append(loop_stability_check(run, setup, record))
@@ -213,14 +214,25 @@ def motor_saturation_check(run: PreparedRun, record: Record) -> Check:
                  detail)
 
 
-def injected(record: Record) -> str:
+def missing_status_samples(record: Record, run: PreparedRun | None = None) -> int:
+    """Cycles whose TPDOs the controller should have received and did not (``run`` given: only
+    the SYNCs the scene's TPDO transmission type sends them on, :mod:`hil_sim.sync_schedule`)."""
+    missing = ~np.isfinite(record.statusword)
+    if run is not None:
+        timing = TpdoTiming.of(run.scene)
+        if not timing.every_sync:
+            missing &= timing.cycles(record.cycles)
+    return int(np.count_nonzero(missing))
+
+
+def injected(record: Record, run: PreparedRun | None = None) -> str:
     """The injected bus faults by kind, one phrase ("" without fault injection)."""
     if not record.faults:
         return ""
     dropped, delayed = record.faults["dropped"], record.faults["delayed"]
     parts = [f"{n} {kind.upper()} dropped" for kind, n in dropped.items() if n]
     parts += [f"{n} {kind.upper()} delayed" for kind, n in delayed.items() if n]
-    missing = int(np.count_nonzero(~np.isfinite(record.statusword)))
+    missing = missing_status_samples(record, run)
     if missing:
         parts.append(f"{missing} status samples missing")
     if record.faults.get("sync_jitter_s"):
@@ -233,12 +245,12 @@ def faults(record: Record) -> list[dict]:
     return [{"time_s": t, "code": f"0x{code:04X}"} for t, code in record.emcy if code & 0xFF00]
 
 
-def faults_check(record: Record) -> Check:
+def faults_check(record: Record, run: PreparedRun | None = None) -> Check:
     """No fault allowed: the count of EMCYs with an error code, or why the run stopped."""
     found = faults(record)
     detail = record.stopped or ("; ".join(f"{f['code']} at {f['time_s']:.6g} s" for f in found)
                                 or "none")
-    bus = injected(record)
+    bus = injected(record, run)
     if bus:
         detail += f"; bus faults injected: {bus}"
     return check("faults", len(found), 0, "count", detail)
@@ -254,7 +266,7 @@ def summary(run: PreparedRun, record: Record) -> dict:
     torsion_hz = mech.torsional_frequency_hz()
     bus = dict(record.bus)
     bus.update({"setup_frames": record.setup.get("setup_frames"),
-                "missing_status_samples": int(np.count_nonzero(~np.isfinite(record.statusword))),
+                "missing_status_samples": missing_status_samples(record, run),
                 "faults": record.faults})
     if "download" in record.setup:
         bus["download"] = record.setup["download"]

@@ -15,6 +15,8 @@ What it does not have: bus faults, bus load and arbitration, the set-up by SDO.
 
 from __future__ import annotations
 
+import math
+
 from hil_sim.control import AxisSetup
 from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE, CamSlot
 from hil_sim.drive.cia402 import (
@@ -28,6 +30,7 @@ from hil_sim.drive.power_state import FOLLOWING_ERROR_WINDOW_OFF
 from hil_sim.int32 import wrap_int32
 from hil_sim.rig.plan import PreparedRun, wire_set_points
 from hil_sim.rig.record import Record, Recorder
+from hil_sim.sync_schedule import TpdoTiming
 
 #: The statusword a drive in OPERATION ENABLED, cyclic synchronous position, reports.
 _STATUSWORD_CSP = STATUSWORD_OF_STATE[OPERATION_ENABLED] | SW_REMOTE | SW_FOLLOWING_COMMAND
@@ -99,6 +102,11 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
             emcy.append((round(time_s, 9), EMCY_FOLLOWING_ERROR))
             stopped = f"drive fault 0x{EMCY_FOLLOWING_ERROR:04X} at cycle {k} (t {time_s:.6g} s)"
             break
+    timing = TpdoTiming.of(scene)
+    if not timing.every_sync:  # what the controller receives: the TPDOs' SYNCs only
+        missing = ~timing.cycles(plan.cycles)
+        recorder.series["statusword"][missing] = math.nan
+        following[missing] = math.nan
     return recorder.record(stopped=stopped, emcy=emcy, model=axis.model,
                            model_reason=axis.model_reason, setup={}, bus={}, faults=None,
                            path="fast")

@@ -30,6 +30,7 @@ from hil_sim.drive.objects import (
 from hil_sim.rig.network import LockstepMaster, pdo_codec
 from hil_sim.rig.plan import Plan, cam_modes, wire_set_points
 from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
+from hil_sim.sync_schedule import MAX_TRANSMISSION_TYPE, TpdoTiming
 
 _SYNC_COB_ID = 0x80
 
@@ -42,13 +43,17 @@ class Station:
         self.scene, self.plan, self.node, self.drive, self.setup = scene, plan, node, drive, setup
         self.axis = drive.axis
         self.streams = _set_point_streams(scene, plan, node)
-        # the data lengths of the frames it puts on the bus every SYNC at cruise (the machine's
-        # bus sizing, hil_sim.bus_sizing): the set points streamed to the end, the TPDOs sent on
-        # every SYNC (transmission type 1, CiA 301 7.5.2.35)
+        # the frames it puts on the bus at cruise, as (COB-ID, data length, every n-th SYNC,
+        # phase) for the machine's bus sizing (hil_sim.bus_sizing): the set points streamed to
+        # the end (every SYNC), the synchronous cyclic TPDOs (CiA 301 7.5.2.37: type n, started
+        # by the SYNC start value when the SYNC counter is on)
+        timing = TpdoTiming.of(scene)
         setup["cyclic_frames"] = (
-            [length for _, _, length, _, until in self.streams if until >= plan.cycles]
-            + [pdo_codec(tpdo)[0].size for tpdo in node.tpdo.map.values()
-               if tpdo.enabled and tpdo.trans_type == 1])
+            [(cob_id, length, 1, 0) for cob_id, _, length, _, until in self.streams
+             if until >= plan.cycles]
+            + [(tpdo.cob_id, pdo_codec(tpdo)[0].size, tpdo.trans_type, timing.phase)
+               for tpdo in node.tpdo.map.values()
+               if tpdo.enabled and 1 <= tpdo.trans_type <= MAX_TRANSMISSION_TYPE])
         self.recorder = Recorder(plan.cycles)
         self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
         self.stopped: str | None = None
@@ -120,12 +125,24 @@ class _Cycles:
         self.end_cycle = load.end_cycle
         self.budget_bits = load.budget_bits
         self.decide = injector.decide if injector else None
-        # every station's set points, in the stations' order: (station, stream)
-        self.streams = [(s, stream) for s in stations for stream in s.streams]
-        self.owner = {stream[0]: s for s, stream in self.streams}  # RPDO COB-ID -> station
-        self.sync = can.Message(arbitration_id=_SYNC_COB_ID, data=b"", is_extended_id=False,
+        # every station's set points, in the stations' order: (station, stream); a COB-ID
+        # several drives consume (the shared master position) goes once, for all of them
+        self.streams = []
+        self.owners: dict[int, list] = {}  # RPDO COB-ID -> the stations that consume it
+        for s in stations:
+            for stream in s.streams:
+                if stream[0] not in self.owners:
+                    self.streams.append((s, stream))
+                    self.owners[stream[0]] = []
+                self.owners[stream[0]].append(s)
+        # CiA 301 7.5.2.22 (0x1019): with an overflow value the SYNC carries a counter, 1 at the
+        # first SYNC, back to 1 after the overflow value
+        self.sync_overflow = stations[0].scene.bus.sync_counter_overflow
+        self.sync_length = 1 if self.sync_overflow else 0
+        self.sync = can.Message(arbitration_id=_SYNC_COB_ID,
+                                data=bytearray(self.sync_length), is_extended_id=False,
                                 check=False)
-        self.sync_bits = frame_bits(0)
+        self.sync_bits = frame_bits(self.sync_length)
         self.sync_offsets = plan.sync_offsets.tolist()
         self.decoders = {}
         for station in stations:
@@ -208,7 +225,9 @@ class _Cycles:
     def _sync(self, k: int, now: float) -> None:
         """The SYNC runs the drives one period; without it each drive still handles its RPDO
         and runs free (its control loop goes on, no TPDOs)."""
-        self.add_frame(0)  # a lost frame took its bus time too
+        self.add_frame(self.sync_length)  # a lost frame took its bus time too
+        if self.sync_length:  # the producer counts every SYNC it sends, lost or not
+            self.sync.data[0] = k % self.sync_overflow + 1
         if self._fate(k, "sync") == DELIVER:
             self.sync.timestamp = now + self.sync_offsets[k]
             self.send(self.sync)  # the bus hands a copy to each receiver
@@ -261,14 +280,16 @@ class _Cycles:
         for cob_id, _, msg in late:
             if msg is None:
                 self.rpdo_late.add(cob_id)
-                station = self.owner[cob_id]
-                station.deferred["late_set_points"] += 1
+                late_at = self.owners[cob_id]  # every drive that consumes it
+                for station in late_at:
+                    station.deferred["late_set_points"] += 1
             else:
                 self.held_rx.setdefault(k + 1, []).append(msg)
-                station = self.decoders[cob_id][2]
-                station.deferred["late_tpdos"] += 1
-            if station.deferred["first_late_cycle"] is None:
-                station.deferred["first_late_cycle"] = k
+                late_at = [self.decoders[cob_id][2]]
+                late_at[0].deferred["late_tpdos"] += 1
+            for station in late_at:
+                if station.deferred["first_late_cycle"] is None:
+                    station.deferred["first_late_cycle"] = k
 
     def _fault(self, k: int, now: float) -> bool:
         """Whether a drive faulted in cycle ``k``: it stops the machine, every station's

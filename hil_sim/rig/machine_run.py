@@ -91,11 +91,26 @@ def _bus_summary(machine: Machine, records: list) -> dict:
             "overrun_cycles", "first_overrun_cycle", "frames", "cycles")
     out = {key: bus[key] for key in keys}
     out.update({"measured": True, "late": late,
-                "sizing": size_bus({a.name: rec.setup["cyclic_frames"]
-                                    for a, rec in zip(machine.axes, records)},
-                                   machine.bus.bitrate, machine.cycle_s,
-                                   machine.bus_load_percent)})
+                "sizing": machine_sizing(machine, [rec.setup["cyclic_frames"] for rec in records])})
     return out
+
+
+def machine_sizing(machine: Machine, cyclic_frames: list) -> dict:
+    """:func:`hil_sim.bus_sizing.size_bus` from each axis's cyclic frames, ``(COB-ID, data
+    length, every, phase)`` (:class:`hil_sim.rig.loop.Station`): a COB-ID several axes put
+    there (the shared master position) counts once, as the machine's."""
+    axes_of = {}
+    for frames in cyclic_frames:
+        for cob_id, *_ in frames:
+            axes_of[cob_id] = axes_of.get(cob_id, 0) + 1
+    shared = {cob_id: (length, every, phase) for frames in cyclic_frames
+              for cob_id, length, every, phase in frames if axes_of[cob_id] > 1}
+    axes = {a.name: [(length, every, phase) for cob_id, length, every, phase in frames
+                     if cob_id not in shared]
+            for a, frames in zip(machine.axes, cyclic_frames)}
+    return size_bus(axes, machine.bus.bitrate, machine.cycle_s, machine.bus_load_percent,
+                    shared=list(shared.values()),
+                    sync_counter=bool(machine.bus.sync_counter_overflow))
 
 
 def _bus_check(machine: Machine, records: list, reports: list) -> Check:

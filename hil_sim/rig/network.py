@@ -15,8 +15,8 @@ from hil_sim.drive.cam_slot import CAM_COMMAND_ACTIVATE, CAM_MODE_DRIVE_SIDE
 from hil_sim.drive.objects import (
     ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_MODE, CAM_TABLE_DOWNLOAD, CONTROLWORD,
     FOLLOWING_ERROR_WINDOW, INTERPOLATION_TIME_INDEX, INTERPOLATION_TIME_PERIOD_VALUE,
-    MASTER_POSITION, MODES_OF_OPERATION, PENDING_CAM_TABLE_CRC32, STATUSWORD, STRUCT_CODES, ObjectKey,
-    interpolation_period,
+    MASTER_POSITION, MODES_OF_OPERATION, PENDING_CAM_TABLE_CRC32, STATUSWORD, STRUCT_CODES,
+    SYNC_COUNTER_OVERFLOW, ObjectKey, interpolation_period,
 )
 from hil_sim.rig.cam import CompiledCam
 from hil_sim.scene import Scene
@@ -92,8 +92,11 @@ def sdo_entry(sdo, key: ObjectKey):
 
 
 def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualDrive,
-                 cam: CompiledCam) -> dict:
+                 cam: CompiledCam, master_cob_id: int | None = None) -> dict:
     """Boot, configure and enable the drive the way a CANopen master does.
+
+    ``master_cob_id``: drive-side, the COB-ID of the master position PDO the machine shares
+    among its drive-side drives (:mod:`hil_sim.rig.shared_master`); None, the drive's own RPDO3.
 
     Returns
     -------
@@ -124,6 +127,13 @@ def set_up_drive(scene: Scene, controller: LockstepMaster, node, drive: VirtualD
         step = "PDO set-up"
         node.tpdo.read()
         node.rpdo.read()
+        step = "TPDO timing (0x1800..0x1803 sub 2 and 6)"
+        _time_tpdos(scene, node)
+        if scene.cam_mode == "drive" and master_cob_id not in (None, node.rpdo[3].cob_id):
+            step = f"shared master position (0x1402 COB-ID 0x{master_cob_id:03X})"
+            rpdo = node.rpdo[3]
+            rpdo.cob_id = master_cob_id
+            rpdo.save()
         if scene.cam_mode == "drive" and cam_in:
             step = "RPDO3 mapping (0x1602: 0x2003, 0x2004)"
             _map_cam_mode(node)
@@ -144,6 +154,23 @@ def _configure(scene: Scene, node) -> None:
     sdo_entry(sdo, INTERPOLATION_TIME_INDEX).raw = index
     sdo_entry(sdo, FOLLOWING_ERROR_WINDOW).raw = scene.drive.following_error_window
     sdo_entry(sdo, MODES_OF_OPERATION).raw = cia402.CYCLIC_SYNCHRONOUS_POSITION
+    if scene.bus.sync_counter_overflow:  # the SYNC will carry the counter: the drive expects it
+        sdo_entry(sdo, SYNC_COUNTER_OVERFLOW).raw = scene.bus.sync_counter_overflow
+
+
+def _time_tpdos(scene: Scene, node) -> None:
+    """Every synchronous TPDO of the drive on every n-th SYNC (the scene's
+    ``drive.tpdo_transmission_type``), started on the SYNC whose counter is
+    ``drive.tpdo_sync_start`` (CiA 301 7.5.2.37: written while the TPDO is not valid, which
+    canopen's ``Map.save`` does first)."""
+    every, start = scene.drive.tpdo_transmission_type, scene.drive.tpdo_sync_start
+    if every == 1 and not start:
+        return  # the EDS defaults: type 1, no start value
+    for tpdo in node.tpdo.map.values():
+        if tpdo.enabled and 1 <= tpdo.trans_type <= 240:
+            tpdo.trans_type = every
+            tpdo.sync_start_value = start
+            tpdo.save()
 
 
 def _map_cam_mode(node) -> None:

@@ -30,6 +30,7 @@ from hil_sim.rig.network import LockstepMaster, set_up_drive
 from hil_sim.rig.plan import PreparedRun, count_cycles, cruise_s, plan_run
 from hil_sim.rig.plot import plot_report
 from hil_sim.rig.record import Record
+from hil_sim.rig.shared_master import shared_master_cob_id
 from hil_sim.scene import Scene, load_scene
 from hil_sim.tuning import AxisLoops
 
@@ -300,6 +301,7 @@ def _run_on_the_bus(axes: list) -> tuple[list, dict]:
     controller, run the cycles; always close the drives and the buses. Returns the records and
     where the time went."""
     first = axes[0].run.scene
+    master_cob_id = shared_master_cob_id(axes)  # before anything opens: a refusal is bad input
     channel = f"hil-sim-{next(_channels)}"
     buses = [open_virtual_bus(channel) for _ in axes]
     master_bus = open_virtual_bus(channel)
@@ -317,7 +319,7 @@ def _run_on_the_bus(axes: list) -> tuple[list, dict]:
             scene = axis.run.scene
             node = canopen.RemoteNode(scene.drive.node_id, load_od(EDS_PATH, scene.drive.node_id))
             controller.add_node(node)
-            facts = set_up_drive(scene, controller, node, drive, axis.run.cam)
+            facts = set_up_drive(scene, controller, node, drive, axis.run.cam, master_cob_id)
             stations.append(Station(scene, axis.run.plan, node, drive, facts))
         setup_s = time.perf_counter() - start
         records = run_stations(stations, controller, load, axes[0].injector)

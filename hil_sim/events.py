@@ -35,9 +35,14 @@ limit, per master unit (and per second at the master's speed there); a position,
 acceleration jump is an error of the report unless the event says ``allow_jump = true``, a jerk
 jump a warning, as :func:`ecam.cam_join.join_cams` judges a join.
 
-One module for both paths: :func:`apply_events` turns the events into the set points the
-controller streams (the plan's targets and velocity offsets) and the ideal slave path the report
-checks against; the bus-free path runs the same plan, so both see the same events.
+One module for both paths: :func:`apply_events` turns the events into what the master and the
+drive see. Controller-side (cam mode "controller"), the set points the controller streams (the
+plan's targets and velocity offsets); drive-side (cam mode "drive"), the master position it
+streams (shifted by the phase) and the commands a controller sends the drive's cam slot
+(:mod:`hil_sim.drive.cam_slot`) by SDO: the new table downloaded into 0x2000, its coordinates
+into 0x2001:05 and the activation into 0x2001:01 (1 at once, 3 at the running table's period
+end), in the cycle the event is requested. The bus-free path (:mod:`hil_sim.rig.fast`) applies
+the same commands to its cam slot. Both paths check against the same ideal slave path.
 """
 
 from __future__ import annotations
@@ -54,10 +59,15 @@ from ecam.camfile import load_cam, read_bounded
 from ecam.errors import InputError, SimulationError
 from ecam.profile import ORDER_NAMES
 from ecam.table_spec import TableSpec
+from hil_sim.drive.cam_slot import (
+    CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_PERIOD_END, SWITCH_MASTER_RELATIVE,
+    SWITCH_SLAVE_RELATIVE,
+)
+from hil_sim.drive.objects import CAM_COMMAND, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD
 from hil_sim.event_spec import Event
 from hil_sim.master import _Segment
 
-__all__ = ["EventOutcome", "Motion", "Switch", "apply_events"]
+__all__ = ["DriveCommand", "EventOutcome", "Motion", "Switch", "apply_events"]
 
 # A jump is what exceeds float noise at the join, measured as ecam.cam_join measures it: relative
 # to the values there, and to what the two cams can produce in that derivative.
@@ -160,13 +170,31 @@ class Motion:
 
 
 @dataclass(frozen=True)
+class DriveCommand:
+    """An SDO write a controller sends the drive's cam slot after cycle ``cycle``'s SYNC:
+    ``value`` bytes (a table blob into 0x2000) or an integer."""
+
+    cycle: int
+    index: int
+    subindex: int
+    value: bytes | int
+    event: int
+
+    @property
+    def key(self) -> tuple:
+        return (self.index, self.subindex)
+
+
+@dataclass(frozen=True)
 class EventOutcome:
     """What the events did in a run: the switches with their jumps, the phase shifts and
-    cam-outs with their peaks, and the phase shift per cycle [master units] for the plots."""
+    cam-outs with their peaks, the phase shift per cycle [master units] for the plots, and
+    drive-side the cam slot's commands."""
 
     switches: tuple = ()
     motions: tuple = ()
     phase: np.ndarray | None = field(default=None, repr=False, compare=False)
+    drive_commands: tuple = field(default=(), repr=False, compare=False)
 
     def to_dict(self) -> dict:
         return {"switches": [s.to_dict() for s in self.switches],
@@ -410,7 +438,8 @@ def _motion(event: Event, start: float, segment: _Segment) -> Motion:
 
 def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
                  t_end: np.ndarray, targets: np.ndarray, velocities: np.ndarray,
-                 reference: np.ndarray, end_s: float):
+                 reference: np.ndarray, end_s: float, master_end: np.ndarray | None = None,
+                 cycle_s: float | None = None):
     """The set points and the ideal slave path with the scene's events.
 
     Parameters
@@ -429,11 +458,17 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
         at each cycle's end [slave units]; returned changed from the first event on.
     end_s : float
         The run's last instant [s].
+    master_end : numpy.ndarray, optional
+        Drive-side: the master counts streamed each cycle (returned shifted by the phase), and
+        the cam slot's commands go into the outcome; None: controller-side.
+    cycle_s : float, optional
+        The bus cycle [s] (drive-side: the cycle of each command).
 
     Returns
     -------
     targets, velocities, reference : numpy.ndarray
     outcome : EventOutcome
+    master_end : numpy.ndarray or None
 
     Raises
     ------
@@ -443,9 +478,12 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
         A phase shift or cam-out ruckig cannot plan within its limits.
     """
     profile, scale = cam.profile, cam.scale
+    drive_side = master_end is not None
+    if drive_side:
+        _check_drive_side(events)
     program = _Program(master, per_unit, end_s)
     program.pieces.append(_Piece(0.0, profile, cam.table, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, per_unit))
-    switches, motions = [], []
+    switches, motions, commands = [], [], []
     requests = []
     for event in events:
         requested = _request_s(event, program, profile.master_period)
@@ -468,11 +506,60 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
             program.out = (requested, segment)
             motions.append(_motion(event, requested, segment))
         else:
-            switches.append(_switch(event, program, requested, scale, per_unit))
+            switch = _switch(event, program, requested, scale, per_unit)
+            switches.append(switch)
+            if drive_side and switch.active_s is not None:
+                commands += _drive_commands(event, program.pieces[-1], requested, cycle_s,
+                                            len(t_set), per_unit)
     targets, velocities, reference = _sample(program, cam, t_set, t_end, targets, velocities,
                                              reference, scale)
     phase = program.phases.sample(t_end, 0) if program.phases.plans else None
-    return targets, velocities, reference, EventOutcome(tuple(switches), tuple(motions), phase)
+    if drive_side and program.phases.plans:  # the master the drive sees: shifted by the phase
+        master_end = np.rint(master.position(t_set) + program.phases.sample(t_set, 0) * per_unit
+                             ).astype(np.int64)
+    outcome = EventOutcome(tuple(switches), tuple(motions), phase, tuple(commands))
+    return targets, velocities, reference, outcome, master_end
+
+
+def _check_drive_side(events: tuple) -> None:
+    """What the drive's cam slot takes: switches activated at once or at the period end, with
+    absolute or relative coordinates and no offset or scaling (the slot has none), and phase
+    shifts (the controller shifts the master it streams)."""
+    for event in events:
+        if event.action in ("offset", "cam_out"):
+            raise InputError(f"{event.label}.action: {event.action!r} should be 'switch' or "
+                             "'phase' with cam_mode 'drive' (the drive's cam slot has no offsets; "
+                             "a cam-out runs controller-side)")
+        if event.action != "switch":
+            continue
+        if event.activation == "master_position":
+            raise InputError(f"{event.label}.activation: 'master_position' should be 'immediate' "
+                             "or 'period_end' with cam_mode 'drive' (0x2001:01 = 1 or 3)")
+        for key, plain in (("master_offset", 0.0), ("slave_offset", 0.0), ("master_scaling", 1.0),
+                           ("slave_scaling", 1.0)):
+            if getattr(event, key) != plain:
+                raise InputError(f"{event.label}.{key}: {getattr(event, key):g} should be "
+                                 f"{plain:g} with cam_mode 'drive' (the drive's cam slot has none)")
+
+
+def _drive_commands(event: Event, piece: _Piece, requested: float, cycle_s: float, cycles: int,
+                    per_unit: float) -> list:
+    """The SDO writes of a switch: the table into 0x2000 (pending), its coordinates into
+    0x2001:05, the activation into 0x2001:01, after the SYNC of the cycle it is requested in."""
+    if piece.table_per_unit != per_unit:
+        raise InputError(f"{event.label}.cam: {piece.profile.master_period:g} "
+                         f"{piece.profile.master_unit} should be a whole number of the scene's master "
+                         f"counts ({per_unit:g} per {piece.profile.master_unit}) with cam_mode 'drive': "
+                         "the drive looks the table up at the master counts it is sent")
+    # the first cycle whose SYNC (k x cycle_s) is not before the request
+    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), cycles - 1)
+    mode = ((SWITCH_MASTER_RELATIVE if event.master == "relative" else 0)
+            | (SWITCH_SLAVE_RELATIVE if event.slave == "relative" else 0))
+    activate = (CAM_COMMAND_ACTIVATE if event.activation == "immediate"
+                else CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+    return [DriveCommand(cycle, *CAM_TABLE_DOWNLOAD, piece.table.to_bytes(), event.index),
+            DriveCommand(cycle, *CAM_SWITCH_MODE, mode, event.index),
+            DriveCommand(cycle, *CAM_COMMAND, activate, event.index)]
 
 
 def _switch(event: Event, program: _Program, requested: float, scale: float,

@@ -157,5 +157,62 @@ def test_events_after_a_cam_out_and_drive_side_events_are_refused():
     with pytest.raises(InputError, match="should come before the cam_out"):
         _plan(late)
     drive = replace(_scene("changeover"), cam_mode="drive", duration=DurationSpec(cycles=10))
-    with pytest.raises(InputError, match="cam_mode 'drive' should be cam_mode 'controller'"):
+    with pytest.raises(InputError, match=r"event\[3\] stop.action: 'cam_out' should be 'switch' or "
+                       "'phase' with cam_mode 'drive'"):
         _plan(drive)
+
+
+# ------------------------------------------------------------------------ drive-side
+
+def test_the_cam_slot_takes_a_queued_table_at_the_period_end():
+    """0x2001:01 = 3 arms the pending table for the running table's period end; with 0x2001:05
+    master and slave relative it starts there at its master 0, offset by where the running table
+    ends (PLCopen MasterAbsolute = SlaveAbsolute = FALSE)."""
+    from hil_sim.drive.cam_slot import (CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_PERIOD_END,
+                                        CAM_STATUS_QUEUED, CamSlot)
+    from hil_sim.drive.objects import CAM_MODE, CAM_STATUS, CAM_SWITCH_MODE, MASTER_POSITION
+
+    seed = compile_cam(load_scene(SCENES_DIR / "stiff_coupling.toml"))
+    b = compile_cam(replace(load_scene(SCENES_DIR / "stiff_coupling.toml"),
+                            cam=replace(load_scene(SCENES_DIR / "stiff_coupling.toml").cam,
+                                        file=CAMS / "product_b.toml")))
+    period = seed.table.master_counts
+    values = {CAM_STATUS: 0, CAM_MODE: 1, CAM_SWITCH_MODE: 3, MASTER_POSITION: 0}
+    slot = CamSlot(values)
+    slot.verify_download(seed.table.to_bytes())
+    slot.write_command(CAM_COMMAND_ACTIVATE)
+    slot.verify_download(b.table.to_bytes())
+    targets = []
+    for k, master in enumerate(range(period - 3 * 128, period + 3 * 128, 128)):
+        values[MASTER_POSITION] = master
+        targets.append(slot.target(0.001)[0])
+        if k == 0:
+            slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+            assert values[CAM_STATUS] & CAM_STATUS_QUEUED
+    assert targets[:3] == [int(seed.table.lookup(m)) for m in range(period - 384, period, 128)]
+    end = int(seed.table.lookup(period))  # the seed's position at its period end
+    assert targets[3:] == [end + int(b.table.lookup(m)) for m in (0, 128, 256)]
+    assert not values[CAM_STATUS] & CAM_STATUS_QUEUED and slot.pending_table is None
+
+
+def test_drive_side_switches_run_the_same_on_the_bus_and_bus_free():
+    """The changeover's switches and phase shift drive-side, at three times the speed (half a
+    second): the drive's cam slot switches at the period ends (the load follows: the tracking
+    error stays in its limit) and the bus-free path gives the same physics bit for bit."""
+    from hil_sim.rig import run_scene
+
+    data = tomllib.loads((SCENES_DIR / "changeover.toml").read_text())
+    data["cam_mode"] = "drive"
+    data["master"]["speed_rpm"] = 180.0
+    data["duration"] = {"cycles": 520}
+    data["event"] = [dict(e) for e in data["event"] if e["action"] != "cam_out"]
+    del data["tappet"]  # a cycle is 1.08 deg at this speed: more than the glue's tolerance
+    for event, at in zip(data["event"], (100.0, 370.0, 455.0)):
+        event["at_position"] = at
+    scene = parse_scene(data, base=SCENES_DIR, source="drive.toml").with_fidelity("ideal")
+    over_bus, bus_free = run_scene(scene), run_scene(scene, path="fast")
+    assert over_bus.passed, over_bus.to_text()
+    for name in ("following_error", "tracking_error", "coupling_torque"):
+        assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
+    switches = over_bus.summary["events"]["switches"]
+    assert [s["master"] for s in switches] == [pytest.approx(360.0), pytest.approx(450.0)]

@@ -3,6 +3,16 @@
 0x2001:01; a bad, truncated or aborted download is refused and the running table keeps running.
 With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003.
 
+A queued switch (issue 23): writing 3 to 0x2001:01 arms the pending table to take over where the
+running table's period ends (the first multiple of its master counts past the master position,
+from its master origin; a table that does not repeat: its end), as a controller's queued
+``MC_CamTableSelect`` does (CODESYS places the new cam "exactly at the end of the previous one";
+Rockwell's pending cam takes effect when the master passes the profile's end). 0x2001:02 shows
+:data:`CAM_STATUS_QUEUED` until then. 0x2001:05 places the table then activated (by 1 or 3) as
+PLCopen's ``MasterAbsolute`` / ``SlaveAbsolute`` do: bit 0 master relative (its master 0 at the
+activation's master position: the period end, or the master of the cycle for 1), bit 1 slave
+relative (the running table's position there added); 0, both absolute, is the drive as before.
+
 A large table is verified off the real-time path when the drive serves an external master on a
 thread of its own: verifying a legal blob of 4 194 305 points took seconds inside the SDO handler,
 with the drive's lock held, and no SYNC, heartbeat or SDO was served meanwhile (issue 28, item 7).
@@ -25,7 +35,7 @@ from ecam import CamTable
 from ecam.errors import TableFormatError
 from hil_sim.drive.objects import (
     ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_LAST_ERROR_CODE, CAM_LAST_ERROR_MESSAGE, CAM_MODE,
-    CAM_STATUS, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32,
+    CAM_STATUS, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE
 from hil_sim.int32 import wrap_int32
@@ -34,10 +44,15 @@ from hil_sim.int32 import wrap_int32
 CAM_COMMAND_NONE = 0
 CAM_COMMAND_ACTIVATE = 1
 CAM_COMMAND_DISCARD = 2
+CAM_COMMAND_ACTIVATE_AT_PERIOD_END = 3
 CAM_STATUS_ACTIVE = 0x01
 CAM_STATUS_PENDING = 0x02
 CAM_STATUS_LAST_DOWNLOAD_REFUSED = 0x04
 CAM_STATUS_VERIFYING = 0x08  # a downloaded table is being verified (off the real-time path)
+CAM_STATUS_QUEUED = 0x10  # the pending table takes over at the running table's period end
+#: 0x2001:05 bits: where an activated table's master 0 and slave 0 are.
+SWITCH_MASTER_RELATIVE = 0x01
+SWITCH_SLAVE_RELATIVE = 0x02
 
 #: Blobs longer than this [bytes] are verified by a worker when the drive runs on its own thread:
 #: about 5 400 cubic points, a few milliseconds of verification (a 1 kHz SYNC waits that long).
@@ -94,6 +109,12 @@ class CamSlot:
         # observed speed [counts/s], samples so far up to 2, speed out [counts/s]); empty: take
         # the next position as it is.
         self.master_observer: tuple = ()
+        # Where the active table sits (0x2001:05): its master 0 and the slave added [counts].
+        self.master_origin = 0
+        self.slave_base = 0
+        # A queued switch: the master position [counts] where it happens (None: at the next
+        # cycle's, computed then); False: none queued.
+        self.queued: int | None | bool = False
 
     def reset(self) -> None:
         """Power-on: no table, none pending (a verification in progress is forgotten)."""
@@ -101,6 +122,8 @@ class CamSlot:
         self.active_table = self.pending_table = None
         self.active_blob = self.pending_blob = None
         self.master_observer = ()
+        self.master_origin = self.slave_base = 0
+        self.queued = False
 
     def forget_master(self) -> None:
         """Take the next master position as it is: the previous ones are stale."""
@@ -181,21 +204,62 @@ class CamSlot:
         if command == CAM_COMMAND_ACTIVATE:
             if self.pending_table is None:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
-            # The swap is one assignment between two cycles: atomic for the control loop.
-            self.active_table, self.active_blob = self.pending_table, self.pending_blob
-            self.pending_table = self.pending_blob = None
+            if self.observing and self.active_table is not None:
+                master = self.master_observer[0]  # the master of the last cycle: the switch's
+                self._place(master, self.slave_base + self._lookup(master)[0])
+            else:
+                self.master_origin = self.slave_base = 0
+            self._activate()
             self.master_observer = ()
-            values[ACTIVE_CAM_TABLE_CRC32] = self.active_table.crc32
-            values[PENDING_CAM_TABLE_CRC32] = 0
-            values[CAM_STATUS] = (values[CAM_STATUS] | CAM_STATUS_ACTIVE) & ~CAM_STATUS_PENDING
+        elif command == CAM_COMMAND_ACTIVATE_AT_PERIOD_END:
+            if self.pending_table is None or self.active_table is None:
+                raise SdoAbortedError(ABORT_DEVICE_STATE)
+            self.queued = None  # its master position from the next cycle's master
+            values[CAM_STATUS] |= CAM_STATUS_QUEUED
         elif command == CAM_COMMAND_DISCARD:  # a verification in progress too
             self._generation += 1
             self.pending_table = self.pending_blob = None
+            self.queued = False
             values[PENDING_CAM_TABLE_CRC32] = 0
-            values[CAM_STATUS] &= ~(CAM_STATUS_PENDING | CAM_STATUS_VERIFYING)
+            values[CAM_STATUS] &= ~(CAM_STATUS_PENDING | CAM_STATUS_VERIFYING | CAM_STATUS_QUEUED)
         elif command != CAM_COMMAND_NONE:
             raise SdoAbortedError(ABORT_INVALID_VALUE)
         values[CAM_COMMAND] = command
+
+    def _activate(self) -> None:
+        """The pending table becomes the active one: one assignment between two cycles, atomic
+        for the control loop."""
+        values = self.values
+        self.active_table, self.active_blob = self.pending_table, self.pending_blob
+        self.pending_table = self.pending_blob = None
+        self.queued = False
+        values[ACTIVE_CAM_TABLE_CRC32] = self.active_table.crc32
+        values[PENDING_CAM_TABLE_CRC32] = 0
+        values[CAM_STATUS] = ((values[CAM_STATUS] | CAM_STATUS_ACTIVE)
+                              & ~(CAM_STATUS_PENDING | CAM_STATUS_QUEUED))
+
+    @property
+    def observing(self) -> bool:
+        return bool(self.master_observer)
+
+    def _place(self, master: int, slave: int) -> None:
+        """The next table's master origin and slave base for a switch at ``master`` [counts]
+        where the running table stands at ``slave`` [counts] (0x2001:05)."""
+        mode = self.values.get(CAM_SWITCH_MODE, 0)
+        self.master_origin = master if mode & SWITCH_MASTER_RELATIVE else 0
+        self.slave_base = slave if mode & SWITCH_SLAVE_RELATIVE else 0
+
+    def _lookup(self, master: int) -> tuple[int, int]:
+        """The active table at ``master`` [counts], from its origin (target without the base)."""
+        return self.active_table.lookup(master - self.master_origin, with_slope=True)
+
+    def _period_end(self, master: int) -> int:
+        """The running table's first period end past ``master`` [counts]; a table that does not
+        repeat: its end."""
+        counts = self.active_table.master_counts
+        if not self.active_table.periodic:
+            return self.master_origin + counts
+        return self.master_origin + ((master - self.master_origin) // counts + 1) * counts
 
     def write_mode(self, mode: int) -> None:
         """0x2004: targets from the controller or from the cam; the cam needs an active table."""
@@ -231,12 +295,24 @@ class CamSlot:
         """Target [counts] and velocity offset [counts/s] from the active cam at the master
         position 0x2003, for an interpolation period of ``cycle_s``."""
         master = self.observe(cycle_s)
+        if self.queued is not False:
+            self._switch_at_period_end(master)
         # The velocity offset belongs to the target's time, as a controller's does: the cam's
         # slope there times the observed master speed (a scalar lookup takes the table's
         # pure-integer path: no numpy overhead per cycle).
-        target, slope = self.active_table.lookup(master, with_slope=True)
+        target, slope = self._lookup(master)
         velocity = slope * self.master_observer[4] / _SLOPE_ONE
-        return target, velocity
+        return target + self.slave_base, velocity
+
+    def _switch_at_period_end(self, master: int) -> None:
+        """A queued switch: its master position fixed at the first cycle after the command, and
+        the pending table active from the cycle whose master reaches it."""
+        if self.queued is None:
+            self.queued = self._period_end(master - 1)  # a master standing on an end takes it
+        end = self.queued
+        if master >= end:
+            self._place(end, self.slave_base + self._lookup(end)[0])
+            self._activate()
 
 
 def _observe(observer: tuple, master: int, cycle_s: float) -> tuple:

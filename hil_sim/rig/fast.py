@@ -24,7 +24,8 @@ from hil_sim.drive.cia402 import (
 )
 from hil_sim.drive.emcy import EMCY_FOLLOWING_ERROR
 from hil_sim.drive.objects import (
-    CAM_MODE, CAM_STATUS, MASTER_POSITION, interpolation_period, interpolation_period_s,
+    CAM_COMMAND, CAM_MODE, CAM_STATUS, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, MASTER_POSITION,
+    interpolation_period, interpolation_period_s,
 )
 from hil_sim.drive.power_state import FOLLOWING_ERROR_WINDOW_OFF
 from hil_sim.int32 import wrap_int32
@@ -68,8 +69,9 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
     engage = plan.cycles  # the cycle the drive-side cam takes over (a cam-in's engagement)
     if drive_side:
         masters = wire_set_points(plan, drive_side=True)[0].tolist()
-        values = {CAM_STATUS: 0, CAM_MODE: 0}
+        values = {CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: 0}
         cam = CamSlot(values)
+        commands = _cam_commands(plan)
         cam.verify_download(run.cam.table.to_bytes())
         cam.write_command(CAM_COMMAND_ACTIVATE)
         engage = plan.engaged_from or 0
@@ -90,6 +92,9 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
             else:
                 cam.observe(cycle_s)
                 cycle(targets[k], velocities[k])
+            if k in commands:  # the controller's SDO writes after this SYNC (hil_sim.events)
+                for command in commands[k]:
+                    _write(cam, values, command)
         else:
             cycle(targets[k], velocities[k])
         error = axis.following_error_counts
@@ -110,3 +115,21 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
     return recorder.record(stopped=stopped, emcy=emcy, model=axis.model,
                            model_reason=axis.model_reason, setup={}, bus={}, faults=None,
                            path="fast")
+
+
+def _cam_commands(plan) -> dict:
+    """cycle -> the drive-side events' commands to the cam slot (:mod:`hil_sim.events`)."""
+    out: dict = {}
+    for command in (plan.events.drive_commands if plan.events is not None else ()):
+        out.setdefault(command.cycle, []).append(command)
+    return out
+
+
+def _write(cam: CamSlot, values: dict, command) -> None:
+    """What the drive does with the SDO write of ``command`` (:class:`VirtualDrive`'s writers)."""
+    if command.key == tuple(CAM_TABLE_DOWNLOAD):
+        cam.verify_download(command.value)
+    elif command.key == tuple(CAM_COMMAND):
+        cam.write_command(command.value)
+    else:
+        values[command.key] = command.value

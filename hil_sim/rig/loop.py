@@ -27,7 +27,7 @@ from hil_sim.drive import VirtualDrive, cia402
 from hil_sim.drive.objects import (
     CAM_MODE, ERROR_CODE, MASTER_POSITION, STATUSWORD, TARGET_POSITION, VELOCITY_OFFSET,
 )
-from hil_sim.rig.network import LockstepMaster, pdo_codec
+from hil_sim.rig.network import LockstepMaster, pdo_codec, send_cam_commands
 from hil_sim.rig.plan import Plan, cam_modes, wire_set_points
 from hil_sim.rig.record import FROM_TPDOS, Record, Recorder
 from hil_sim.sync_schedule import MAX_TRANSMISSION_TYPE, TpdoTiming
@@ -56,6 +56,9 @@ class Station:
                if tpdo.enabled and 1 <= tpdo.trans_type <= MAX_TRANSMISSION_TYPE])
         self.recorder = Recorder(plan.cycles)
         self.deferred = {"late_set_points": 0, "late_tpdos": 0, "first_late_cycle": None}
+        self.commands: dict = {}  # cycle -> the events' SDO writes to the cam slot (drive-side)
+        for command in (plan.events.drive_commands if plan.events is not None else ()):
+            self.commands.setdefault(command.cycle, []).append(command)
         self.stopped: str | None = None
 
 
@@ -195,6 +198,8 @@ class _Cycles:
                 self._release_held_tpdos(k)
             self._receive_and_arbitrate(k)
             for station in stations:
+                if k in station.commands:  # after the cycle's TPDOs: the SDO answers are its own
+                    send_cam_commands(station.node, station.commands[k])
                 station.recorder.probe(k, station.axis)
             self.end_cycle()
             for station in stations:

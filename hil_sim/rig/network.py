@@ -219,3 +219,14 @@ def _enable(controller: LockstepMaster, node) -> None:
     if statusword & 0x6F != 0x27:
         raise SimulationError(f"drive statusword 0x{statusword:04x} after enabling, expected "
                               "OPERATION ENABLED (0x27 under mask 0x6F)")
+
+
+def send_cam_commands(node, commands) -> None:
+    """The events' writes to the drive's cam slot (:class:`hil_sim.events.DriveCommand`) by SDO:
+    a table blob downloaded (segmented) into 0x2000, a number written expedited."""
+    sdo = node.sdo
+    for command in commands:
+        if isinstance(command.value, bytes):
+            sdo.download(command.index, command.subindex, command.value)
+        else:
+            sdo_entry(sdo, ObjectKey(command.index, command.subindex)).raw = command.value

@@ -171,13 +171,13 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
         if slave_plan is not None:
             raise InputError("event: a scene with master.profile 'cam_in' should have no "
                              "[[event]] (engage with a switch event instead)")
-        if scene.cam_mode == "drive":
-            raise InputError("event: [[event]] with cam_mode 'drive' should be cam_mode "
-                             "'controller': the rig streams events as the controller's set points")
-        targets, velocities, reference, outcome = apply_events(
+        targets, velocities, reference, outcome, shifted = apply_events(
             scene.events, cam, master, per_unit, t_set, t_end, np.asarray(targets, dtype=np.int64),
             np.asarray(velocities, dtype=float), np.asarray(reference, dtype=float),
-            float(t_end[-1]) + cycle_s * max(spec.lead_cycles, 1))
+            float(t_end[-1]) + cycle_s * max(spec.lead_cycles, 1),
+            master_end if scene.cam_mode == "drive" else None, cycle_s)
+        if shifted is not None:
+            master_end = shifted
     tracks = tuple(profile.tappets) + tuple(scene.tappets)
     edges = (tappet_edges(tracks, master, per_unit, period, table.master_counts, cycle_s, cycles)
              if tracks else ())

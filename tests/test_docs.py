@@ -142,7 +142,9 @@ def test_every_internal_link_of_the_site_resolves(site):
 # Opened in the browser: the pages a newcomer reads first.
 BROWSED = ("index.html", "tutorial/index.html", "reference/scene-file.html",
            "reference/cam-file.html", "reference/cli.html", "reference/benchmarks.html",
-           "howto/ci.html")
+           "howto/ci.html",
+           # the topics the tutorial leads to, in its order
+           "fit.html", "tuning.html", "sizing.html", "sweep.html", "cam_changes.html", "machine.html")
 
 # Loads each page in an iframe, then reports its title, its images (loaded or not) and the
 # status of every internal link (fetched from the same server), as JSON in the DOM.
@@ -219,6 +221,8 @@ def test_the_site_in_headless_chromium(site, tmp_path):
             assert width > 0, f"{page['page']}: image {src} did not load"
     benchmarks = next(p for p in pages if p["page"] == "reference/benchmarks.html")
     assert any("pareto" in src for src, _ in benchmarks["images"])
+    fit = next(p for p in pages if p["page"] == "fit.html")
+    assert any("fit-lift" in src for src, _ in fit["images"])
 
 
 def _version() -> str:

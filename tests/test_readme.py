@@ -1,13 +1,14 @@
-"""The README's commands and the documentation's Python API example run as written."""
+"""The README's commands (run by tests/test_tutorial.py, the walkthrough being a part of the tutorial)
+and the documentation's Python API example run as written."""
 
-import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -86,24 +87,23 @@ def walkthrough_commands() -> list[str]:
     return [line for line in lines if line and not line.startswith("cd ")]
 
 
-@pytest.mark.slow
-def test_the_readme_walkthrough_runs(tmp_path):
-    """Every command of the five-minute walkthrough, in a copy of examples/project."""
-    project = tmp_path / "project"
-    shutil.copytree(ROOT / "examples" / "project", project)
-    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+def test_the_readme_walkthrough_is_the_tutorials():
+    """Every command of the five-minute walkthrough is one of the tutorial's, which
+    tests/test_tutorial.py runs in a copy of examples/project (so it runs once, there), and every
+    output line the README shows is one the tutorial shows for that command."""
+    from test_tutorial import tutorial_commands
+
     commands = walkthrough_commands()
     assert [c.split()[:2] for c in commands][:4] == [["ecam", "check"], ["ecam", "compile"],
                                                       ["ecam", "export"], ["ecam", "sim"]]
+    shown = dict(tutorial_commands())
     for command in commands:
-        words = command.split()
-        if words[0] == "ecam":
-            words = [sys.executable, "-m", "ecam.app", *words[1:]]
-        elif words[0] == "python3":
-            words = [sys.executable, *words[1:], "-q", "-p", "no:cacheprovider"]
-        done = subprocess.run(words, cwd=project, env=environment, capture_output=True, text=True,
-                              timeout=300)
-        assert done.returncode == 0, f"{command}: {done.stdout[-2000:]}{done.stderr[-2000:]}"
-        if words[-1] == "scenes/lift.toml":
-            assert "scene lift: PASSED" in done.stdout
-    assert (project / "lift.st").is_file() and (project / "tables" / "lift.h").is_file()
+        assert command in shown, f"{command!r} is not a command of docs/tutorial/index.md"
+    readme = README.read_text().split("## Five minutes", 1)[1].split("\n## ", 1)[0]
+    outputs = [body for language, body in re.findall(r"^```(\w*)\n(.*?)^```", readme, re.S | re.M)
+               if not language]
+    assert len(outputs) == 2
+    for block, command in zip(outputs, ("ecam compile cams/lift.toml -o tables --format c,bin,json",
+                                        "ecam sim scenes/lift.toml")):
+        for line in block.splitlines():
+            assert line == "..." or line in shown[command], f"README shows {line!r}; the tutorial does not"

@@ -172,13 +172,15 @@ _SIZING_FIELDS = (
           "given here", source=_SIZING),
     _sizing("motor", "stall_torque", "M0: the S1 curve at standstill (required).", "N m",
             maximum=1e6, limits=">= rated_torque, <= max_torque", probe=False),
-    _sizing("motor", "rated_torque", "M_N, the S1 curve's point at rated_speed_rpm (required).",
-            "N m", maximum=1e6, limits="<= stall_torque", probe=False),
-    _sizing("motor", "rated_speed_rpm", "n_N (required).", "rpm", maximum=1e6, when=_MODEL),
+    _sizing("motor", "rated_torque", "M_N, the S1 curve's point at rated_speed_rpm (given with "
+            "it; without them the S1 check takes M0 at every speed and says so).", "N m",
+            maximum=1e6, limits="<= stall_torque; with rated_speed_rpm", probe=False),
+    _sizing("motor", "rated_speed_rpm", "n_N (given with rated_torque).", "rpm", maximum=1e6,
+            limits="with rated_torque", when=_MODEL),
     _sizing("motor", "max_torque", "The motor's peak torque (required).", "N m", maximum=1e6,
             limits=">= stall_torque", when=_MODEL),
-    _sizing("motor", "max_speed_rpm", "The motor's maximum speed (required).", "rpm",
-            maximum=1e6, when=_MODEL),
+    _sizing("motor", "max_speed_rpm", "The motor's maximum speed: the motor_speed check's "
+            "limit.", "rpm", maximum=1e6, when=_MODEL),
     _sizing("motor", "torque_constant", "kT (required).", "N m/A", maximum=1e4, when=_MODEL),
     _sizing("motor", "voltage_constant", "kE, line-to-line rms back-EMF per rad/s (a catalogue's "
             "V/1000 rpm divided by 104.72) (required).", "V s/rad", maximum=1e4, when=_MODEL),

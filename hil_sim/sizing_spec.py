@@ -16,10 +16,10 @@ Layout (units: SI, rpm where the name says so)::
     [motor]
     model = "1FT7044-AK7"          # a catalogue entry (optional); the fields below override it
     stall_torque = 5.0             # M0 [N m]
-    rated_torque = 2.0             # a point of the S1 curve [N m] ...
-    rated_speed_rpm = 6000.0       # ... at this speed [rpm]
+    rated_torque = 2.0             # a point of the S1 curve [N m] ... (optional, with
+    rated_speed_rpm = 6000.0       # ... at this speed [rpm]          rated_speed_rpm)
     max_torque = 23.0              # [N m]
-    max_speed_rpm = 9000.0
+    max_speed_rpm = 9000.0         # optional
     torque_constant = 0.88         # kT [N m/A]
     voltage_constant = 0.5443      # kE [V s/rad], line-to-line rms
     winding_resistance = 0.61      # [ohm], phase; optional (0)
@@ -70,14 +70,14 @@ class MotorData:
     """A servo motor's catalogue data (SI; see the module docstring for each field)."""
 
     stall_torque: float
-    rated_torque: float
-    rated_speed_rpm: float
     max_torque: float
-    max_speed_rpm: float
     torque_constant: float
     voltage_constant: float
     thermal_time_constant_s: float
     rotor_inertia: float
+    rated_torque: float | None = None
+    rated_speed_rpm: float | None = None
+    max_speed_rpm: float | None = None
     winding_resistance: float = 0.0
     inductance: float = 0.0
     pole_pairs: int = 1
@@ -87,7 +87,11 @@ class MotorData:
     source: str = ""
 
     def s1_points(self) -> list[tuple[float, float]]:
-        """The S1 curve's catalogue points: (0, M0) and (n_N, M_N) [rpm, N m]."""
+        """The S1 curve's catalogue points: (0, M0) and (n_N, M_N) [rpm, N m]; only (0, M0)
+        where the catalogue gives no rated point (M0 at every speed: on the unsafe side, the
+        S1 curve of a real motor falls with the speed, and the thermal check says so)."""
+        if self.rated_torque is None:
+            return [(0.0, self.stall_torque)]
         return [(0.0, self.stall_torque), (self.rated_speed_rpm, self.rated_torque)]
 
     def current_points(self) -> list[tuple[float, float]]:
@@ -175,7 +179,8 @@ class SizingSpec:
             ratio = out.get("gear_ratio", 1.0)
             if shaft is not None:
                 springs.append(stiffness_at_output(shaft, ratio))
-            out["coupling_stiffness"] = series_stiffness(*springs)
+            if sum(k is not None for k in springs) > 1:  # the coupling alone stays as given
+                out["coupling_stiffness"] = series_stiffness(*springs)
         if "motor_torque_limit" not in out:
             clamp = self.torque_clamp()
             if clamp is not None:
@@ -196,8 +201,9 @@ _GEARHEAD_KEYS = {"gearhead_stiffness": "torsional_stiffness",
                   "gearhead_shock_factor": "shock_factor"}
 #: The [mechanics] keys of the gearhead (besides the mechanics fields).
 GEARHEAD_KEYS = ("gearhead", *_GEARHEAD_KEYS)
-_REQUIRED_MOTOR = ("stall_torque", "rated_torque", "rated_speed_rpm", "max_torque",
-                   "max_speed_rpm", "torque_constant", "voltage_constant",
+# rated_torque with rated_speed_rpm (the S1 point) and max_speed_rpm are optional: a catalogue
+# that does not give them (hil_sim/catalogue.toml says which) leaves them out
+_REQUIRED_MOTOR = ("stall_torque", "max_torque", "torque_constant", "voltage_constant",
                    "thermal_time_constant_s", "rotor_inertia")
 # Physical ranges [SI]: a watch motor to a press; the lower bounds of what divides are > 0.
 _MAX = {"stall_torque": 1e6, "rated_torque": 1e6, "rated_speed_rpm": 1e6, "max_torque": 1e6,
@@ -269,7 +275,12 @@ def _motor(top: Fields) -> MotorData | None:
     if missing:
         raise raw.error(f"motor: {', '.join(missing)} missing; expected in [motor] or from its "
                         "catalogue model")
-    if values["rated_torque"] > values["stall_torque"]:
+    if ("rated_torque" in values) != ("rated_speed_rpm" in values):
+        given, other = (("rated_torque", "rated_speed_rpm") if "rated_torque" in values
+                        else ("rated_speed_rpm", "rated_torque"))
+        raise raw.error(f"{raw.name(other)}: missing should be given with {given} (the S1 "
+                        "curve's point)")
+    if values.get("rated_torque", 0.0) > values["stall_torque"]:
         raise raw.error(f"{raw.name('rated_torque')}: {show(values['rated_torque'])} should be <= "
                         f"stall_torque {show(values['stall_torque'])}")
     if values["max_torque"] < values["stall_torque"]:

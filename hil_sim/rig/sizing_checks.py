@@ -149,6 +149,9 @@ def motor_thermal_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
     detail = (f"RMS over the cam cycle {rms:.4g} N m, thermal model with the "
               f"{motor.thermal_time_constant_s:g} s time constant {window:.4g} N m (the larger "
               f"counts), against S1 {s1:.4g} N m at the mean speed {mean_rpm:.4g} rpm")
+    if motor.rated_torque is None:
+        detail += ("; the catalogue gives no S1 point above standstill: M0 at every speed (on "
+                   "the unsafe side: a real motor's S1 curve falls with the speed)")
     return (check("motor_thermal", value, s1, "N m", detail),
             {"rms_torque": rms, "thermal_window_torque": window, "mean_speed_rpm": mean_rpm,
              "s1_torque_at_mean_speed": s1})
@@ -175,7 +178,7 @@ def motor_speed_check(run: PreparedRun, duty: Duty) -> Check:
     spec = run.scene.sizing
     worst = int(np.argmax(duty.speed_rpm))
     limits = []
-    if spec.motor is not None:
+    if spec.motor is not None and spec.motor.max_speed_rpm is not None:
         limits.append((spec.motor.max_speed_rpm, "the motor's maximum"))
     if spec.gearhead is not None and spec.gearhead.max_input_speed_rpm is not None:
         limits.append((spec.gearhead.max_input_speed_rpm, "the gearhead's maximum input speed"))
@@ -346,7 +349,9 @@ def sizing_checks(run: PreparedRun) -> tuple[list[Check], dict, dict]:
     series = {"sizing_speed_rpm": duty.speed_rpm * np.sign(duty.motor_speed),
               "sizing_torque": duty.motor_torque}
     if motor is not None:
-        top = max(motor.max_speed_rpm, float(np.max(duty.speed_rpm)))
+        fastest = float(np.max(duty.speed_rpm))
+        # without a catalogue maximum speed the curves run to 1.5 x the duty's fastest sample
+        top = 1.5 * fastest if motor.max_speed_rpm is None else max(motor.max_speed_rpm, fastest)
         rpm = np.linspace(0.0, top, CURVE_POINTS)
         series.update(sizing_curve_rpm=rpm,
                       sizing_s1_torque=sizing.s1_torque(rpm, motor.s1_points()),

@@ -15,7 +15,8 @@ its speed (the voltage limit included); the maximum speed.
 * :func:`thermal_torque`: the equivalent torque of a first-order thermal model with the motor's
   thermal time constant (the worst window of a short or slow duty);
 * :func:`voltage_limited_torque`: the torque the DC-link voltage allows at a speed, from kE, kT,
-  the winding resistance and inductance;
+  the winding resistance and inductance; :class:`VoltageLimit` the same curve for one motor on
+  one DC link, its constants computed once, for a controller's torque clamp;
 * :func:`current_for_torque`, :func:`torque_for_current`: the motor's torque-current relation
   (catalogue points: a servo motor saturates above its stall current);
 * :func:`dc_link_energy`, :func:`regenerated_energy`: what the DC link absorbs between its
@@ -31,6 +32,7 @@ its speed (the voltage limit included); the maximum speed.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,6 +46,7 @@ __all__ = [
     "s1_torque",
     "thermal_torque",
     "voltage_limited_torque",
+    "VoltageLimit",
     "current_for_torque",
     "torque_for_current",
     "dc_link_energy",
@@ -241,6 +244,73 @@ def voltage_limited_torque(speed, *, torque_constant: float, voltage_constant: f
     current = np.where(e >= u, 0.0, np.maximum(current, 0.0))
     torque = kt * current
     return float(torque) if torque.ndim == 0 else torque
+
+
+@dataclass(frozen=True)
+class VoltageLimit:
+    """:func:`voltage_limited_torque` of one motor on one DC link, its constants computed once:
+    the speed-dependent part of a drive's torque clamp.
+
+    Parameters are those of :func:`voltage_limited_torque`. :meth:`torque` gives the same value
+    for one speed in plain float arithmetic; :attr:`constants` are what a hot loop inlines.
+    """
+
+    torque_constant: float
+    voltage_constant: float
+    resistance: float
+    dc_bus_voltage: float
+    inductance: float = 0.0
+    pole_pairs: int = 1
+    #: (kT, kE / sqrt3, pole_pairs L, R, R^2, U_dc / sqrt6, U^2): see :meth:`torque`
+    constants: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        kt = positive("torque_constant", self.torque_constant)
+        ke = positive("voltage_constant", self.voltage_constant)
+        r = number("resistance", self.resistance, minimum=0.0)
+        u = positive("dc_bus_voltage", self.dc_bus_voltage) / math.sqrt(6.0)
+        inductance = number("inductance", self.inductance, minimum=0.0)
+        pole_pairs = number("pole_pairs", self.pole_pairs, minimum=1.0)
+        object.__setattr__(self, "constants", (kt, ke / math.sqrt(3.0), pole_pairs * inductance,
+                                               r, r * r, u, u * u))
+
+    def torque(self, speed: float) -> float:
+        """The torque the voltage allows at ``speed`` [rad/s] (its magnitude) [N m]: 0 from
+        the speed where the back-EMF alone takes the voltage; ``math.inf`` at standstill on a
+        winding without resistance and inductance."""
+        kt, a, x, r, r2, u, u2 = self.constants
+        w = abs(speed)
+        e = a * w
+        if e >= u:
+            return 0.0
+        xl = x * w
+        z2 = r2 + xl * xl
+        if z2 <= 0.0:
+            return math.inf
+        return kt * (math.sqrt(e * e * r2 - z2 * (e * e - u2)) - e * r) / z2
+
+    def no_load_speed(self) -> float:
+        """The speed where the back-EMF alone takes the voltage, ``U_dc / (sqrt2 kE)`` [rad/s]:
+        no torque is left from there on."""
+        _, a, _, _, _, u, _ = self.constants
+        return u / a
+
+    def speed_at(self, torque: float) -> float:
+        """The highest speed [rad/s] up to which the curve gives at least ``torque`` [N m]
+        (the curve falls with the speed): 0 when not even standstill gives it. Bisection to
+        the last bit, the lower end kept, so ``torque(speed_at(t)) >= t``."""
+        torque = number("torque", torque, minimum=0.0)
+        low, high = 0.0, self.no_load_speed()
+        if self.torque(low) < torque:
+            return 0.0
+        while True:
+            middle = 0.5 * (low + high)
+            if middle <= low or middle >= high:
+                return low
+            if self.torque(middle) >= torque:
+                low = middle
+            else:
+                high = middle
 
 
 def _torque_current(points) -> tuple[np.ndarray, np.ndarray]:

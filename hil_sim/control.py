@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 from ecam.mechanics import Mechanics
+from ecam.sizing import VoltageLimit
 from ecam.validate import choice, fail, integer, number, plain, positive
 from hil_sim.feedback import Encoder, IdealFeedback
 from hil_sim.filters import Notch
@@ -69,6 +70,11 @@ class DriveEffects:
         proportional to it within :data:`FRICTION_BAND` (the curve of the Beckhoff AX2000's
         ISTFR/VSTFR friction compensation, ASCII object 0x36A4); 0: none, as drives ship it
         (ISTFR default 0; Beckhoff TF5200 P-AXIS-00522, friction compensation, default 0).
+    voltage_limit : ecam.sizing.VoltageLimit or None
+        The motor's voltage limit on the drive's DC link: the torque clamp at the measured
+        speed is the smaller of ``mechanics.motor_torque_limit`` and this curve (a drive's
+        current controller runs out of voltage above the speed where the back-EMF and the
+        winding's drop take the DC link's); None: the constant clamp alone.
     """
 
     encoder_counts_per_rev: int | None = None
@@ -77,6 +83,7 @@ class DriveEffects:
     computation_delay: bool = False
     speed_symmetrization: bool = False
     friction_feedforward: float = 0.0
+    voltage_limit: VoltageLimit | None = None
 
     def __post_init__(self) -> None:
         if self.encoder_counts_per_rev is not None:
@@ -94,6 +101,8 @@ class DriveEffects:
             raise fail("speed_symmetrization", self.speed_symmetrization, "true or false")
         object.__setattr__(self, "friction_feedforward",
                            _non_negative("friction_feedforward", self.friction_feedforward))
+        if self.voltage_limit is not None and not isinstance(self.voltage_limit, VoltageLimit):
+            raise fail("voltage_limit", self.voltage_limit, "an ecam.sizing.VoltageLimit or None")
 
 
 @dataclass(frozen=True)
@@ -227,7 +236,9 @@ class ServoAxis:
       parabola through the last three targets, the acceleration through a first-order low-pass of
       :data:`TARGET_ACCELERATION_FILTER_S`; a velocity offset, if any, is ramped between its last
       two values and added to the speed command.
-    * The torque is clamped to ``mechanics.motor_torque_limit``; while clamped the integrator
+    * The torque is clamped to ``mechanics.motor_torque_limit`` and, with
+      ``drive_effects.voltage_limit``, to the motor's voltage limit at the measured speed;
+      while clamped the integrator
       only integrates errors that pull it out of the limit (conditional integration), and the
       position correction never asks for more speed than half the limited acceleration can
       brake within the remaining error (square-root law), so a torque-limited axis recovers
@@ -309,6 +320,12 @@ class ServoAxis:
         self._symmetric_gain = 1.0 - math.exp(-2.0 * math.pi * drive_effects.velocity_filter_hz
                                               * self.dt)
         self._friction_ff = drive_effects.friction_feedforward
+        voltage = drive_effects.voltage_limit
+        self._voltage = None if voltage is None else voltage.constants
+        # below the speed where the voltage still gives the constant clamp the curve cannot
+        # bind: the hot loop skips it there (the curve falls with the speed)
+        self._voltage_knee = (0.0 if voltage is None or mechanics.motor_torque_limit is None
+                              else voltage.speed_at(mechanics.motor_torque_limit))
         # A notch at or above the controller's Nyquist frequency cannot be run (a drive's
         # tuning tool refuses it): none then, e.g. while 0x60C2 still holds its power-on value.
         self._notch = (Notch(gains.notch_hz, gains.notch_width, gains.notch_depth_db, self.dt)
@@ -424,6 +441,11 @@ class ServoAxis:
         symmetrize, symmetric, gain = self._symmetrize, self._symmetric, self._symmetric_gain
         half = 0.5 * dt
         friction = self._friction_ff
+        voltage = self._voltage
+        if voltage is not None:
+            vkt, va, vx, vr, vr2, vu, vu2 = voltage
+            knee = self._voltage_knee
+            sqrt = math.sqrt
         peak_torque = peak_coupling = peak_twist = 0.0
         saturated = False
         for i in range(self.substeps):
@@ -451,10 +473,26 @@ class ServoAxis:
                 wanted += friction * max(-1.0, min(1.0, reference / FRICTION_BAND))
             if notch is not None:
                 wanted = notch(wanted)
-            if wanted > limit:
-                torque, clamped = limit, True
-            elif wanted < -limit:
-                torque, clamped = -limit, True
+            if voltage is None or -knee <= speed <= knee:
+                clamp = limit
+            else:
+                # the voltage limit at the measured speed, as ecam.sizing.VoltageLimit.torque
+                # has it, inlined (this loop runs every controller period)
+                w = speed if speed >= 0.0 else -speed
+                e = va * w
+                if e >= vu:
+                    clamp = 0.0
+                else:
+                    xl = vx * w
+                    z2 = vr2 + xl * xl
+                    clamp = (vkt * (sqrt(e * e * vr2 - z2 * (e * e - vu2)) - e * vr) / z2
+                             if z2 > 0.0 else limit)
+                    if clamp > limit:
+                        clamp = limit
+            if wanted > clamp:
+                torque, clamped = clamp, True
+            elif wanted < -clamp:
+                torque, clamped = -clamp, True
             else:
                 torque, clamped = wanted, False
             # Anti-windup: while clamped, integrate only errors that pull out of the limit.

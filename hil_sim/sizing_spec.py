@@ -9,7 +9,9 @@ coupling (so the plant, the two-mass model and the tuner see the combined spring
 :func:`ecam.sizing.two_mass_frequency_with_gearhead` has it), and the drive's torque clamp
 follows from the motor and the module (peak current through the motor's torque-current curve,
 capped by the motor's maximum torque) unless the scene gives ``motor_torque_limit``. The voltage
-limit at speed is not part of the constant clamp: the ``motor_speed_torque`` check holds it.
+limit at speed is the clamp's speed-dependent part (:meth:`SizingSpec.voltage_limit`, applied
+by the drive's controller, ``hil_sim.control.DriveEffects.voltage_limit``), again unless the
+scene gives ``motor_torque_limit``.
 
 Layout (units: SI, rpm where the name says so)::
 
@@ -58,7 +60,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from ecam.errors import CamFileError
-from ecam.sizing import series_stiffness, stiffness_at_output, torque_for_current
+from ecam.sizing import VoltageLimit, series_stiffness, stiffness_at_output, torque_for_current
 from ecam.validate import Fields, show
 
 #: The catalogue of motors, modules and gearheads a scene can name (package data).
@@ -140,6 +142,9 @@ class SizingSpec:
     motor: MotorData | None = None
     module: ModuleData | None = None
     gearhead: GearheadData | None = None
+    #: True when the scene gives ``mechanics.motor_torque_limit``: its clamp, not the drive
+    #: train's (no voltage limit in the drive's clamp then)
+    scene_clamp: bool = False
 
     @property
     def given(self) -> bool:
@@ -156,6 +161,18 @@ class SizingSpec:
             limit = min(limit, torque_for_current(self.module.peak_current,
                                                   self.motor.current_points()))
         return limit
+
+    def voltage_limit(self) -> VoltageLimit | None:
+        """The speed-dependent part of the drive's torque clamp: the motor's voltage limit on
+        the module's DC link (:class:`ecam.sizing.VoltageLimit`); None without a motor, without
+        a DC-link voltage, or when the scene gives its own ``motor_torque_limit``."""
+        motor, module = self.motor, self.module
+        if (motor is None or module is None or module.dc_bus_voltage is None
+                or self.scene_clamp):
+            return None
+        return VoltageLimit(motor.torque_constant, motor.voltage_constant,
+                            motor.winding_resistance, module.dc_bus_voltage,
+                            motor.inductance, motor.pole_pairs)
 
     def fold(self, values: dict) -> dict:
         """The :class:`ecam.mechanics.Mechanics` fields with the drive train in: the rotor and
@@ -356,7 +373,9 @@ def parse_sizing(top: Fields) -> SizingSpec:
         that is not the named gearhead's; one line naming the field.
     """
     try:
+        mechanics = top.table("mechanics")
         return SizingSpec(motor=_motor(top), module=_module(top.table("drive")),
-                          gearhead=_gearhead(top.table("mechanics")))
+                          gearhead=_gearhead(mechanics),
+                          scene_clamp="motor_torque_limit" in mechanics)
     except (OSError, tomllib.TOMLDecodeError) as exc:  # the catalogue itself, not the scene
         raise CamFileError(f"catalogue {CATALOGUE.name}: {exc}") from None

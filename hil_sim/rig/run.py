@@ -207,7 +207,8 @@ def axis_setup(run: PreparedRun, included) -> AxisSetup:
     scene = run.scene
     model, plant_effects, drive_effects = run.effect_values.build(included)
     drive_effects = replace(drive_effects, speed_symmetrization=scene.drive.speed_symmetrization,
-                            friction_feedforward=friction_feedforward(run))
+                            friction_feedforward=friction_feedforward(run),
+                            voltage_limit=scene.sizing.voltage_limit())
     return AxisSetup(run.mechanics, run.gains, substeps=scene.drive.substeps,
                      counts_per_motor_rad=_counts_per_motor_rad(scene, run.cam, run.mechanics),
                      model=model, excitation_hz=run.excitation_hz, plant_effects=plant_effects,

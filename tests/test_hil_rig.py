@@ -20,6 +20,7 @@ from hil_sim.rig.cam import compile_cam
 from hil_sim.rig.loop import Record
 from hil_sim.rig.plan import PreparedRun, plan_run
 from hil_sim.scene import DurationSpec, load_scene, parse_scene
+from hil_sim.sizing_spec import SizingSpec
 
 SCENES = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
 # The sizing checks (issue 21) follow the drive's: without [motor] they are reported without limits.
@@ -492,7 +493,8 @@ def test_find_max_speed_measures_the_flips_of_a_check_with_a_limit_of_0():
     assert "a trial failed at 102 and one passed at 103" in flipped[1]
     # the stiff scene: the limiting check is motor_saturation, and the reason says what the
     # search measured of it, not only the requested tolerance
-    result = find_max_speed(scene("stiff_coupling"))
+    # (without its motor: with it the sizing's motor_thermal limits the scene first)
+    result = find_max_speed(scene("stiff_coupling", sizing=SizingSpec()))
     assert "motor_saturation" in result["limiting_check"]
     assert "motor_saturation" in result["resolution_reason"], result["resolution_reason"]
     fails = [abs(r["speed"]) for r in result["runs"] if r["path"] == "fast" and not r["passed"]]

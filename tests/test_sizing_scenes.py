@@ -93,3 +93,21 @@ def test_a_rated_torque_needs_its_speed():
     data["motor"]["rated_speed_rpm"] = 3000.0
     scene = parse_scene(data, base=path.parent, source=path.name)
     assert scene.sizing.motor.s1_points() == [(0.0, 2.11), (3000.0, 2.0)]
+
+
+def test_the_akd_dc_link_absorbs_the_energy_kollmorgen_gives_for_it():
+    """Kollmorgen Developer Network, "Calculation of brake power": AKD-x00607, 235 uF, 35 Ws
+    stored on a 3 x 400 V mains before the brake resistor takes over."""
+    entry = catalogue()["module"]["AKD-x00607"]
+    assert entry["dc_bus_voltage"] == pytest.approx(400.0 * math.sqrt(2.0))
+    energy = sizing.dc_link_energy(entry["dc_link_capacitance"], entry["dc_bus_voltage"],
+                                   entry["brake_chopper_voltage"])
+    assert energy == pytest.approx(35.0, abs=0.05)  # the table's 35 Ws, to its rounding
+
+
+def test_the_knifes_regeneration_is_rated_against_the_stand_in_dc_link():
+    run, _ = prepare(load_scene(SCENES / "rotary_knife.toml").with_master_speed(1800.0))
+    line = {c.name: c for c in sizing_checks(run)[0]}["regeneration"]
+    # C (U_chop^2 - U_dc^2) / 2 between the knife's 600 V and the AKD's 786 V: 30.29 J
+    assert line.limit == pytest.approx(0.5 * 235e-6 * (786.0**2 - 600.0**2))
+    assert line.passed and line.value > 0.0

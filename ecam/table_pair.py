@@ -14,19 +14,21 @@ Coordinates follow PLCopen per axis (PLCopen TC2, Function Blocks for Motion Con
 switch ("Function Blocks: MC_CamTableSelect and MC_CamIn") and as :func:`ecam.cam_join.join_cams`
 (``ecam check A --then B``) predicts it:
 
-* engagement (``MC_CamIn``, StartMode absolute): the table is looked up at
-  ``master + MasterOffset`` and ``SlaveOffset`` is added to its position;
-* master ``"absolute"``: the pending table is looked up at ``master + MasterOffset`` too (it "is
-  started at the current master position"); refused for a table that does not repeat, whose
-  range the boundary can miss (CODESYS: SMC_CI_MASTER_OUT_OF_SCALE);
-* master ``"relative"``: the pending table's master 0 is the boundary ("sets the zero point of
-  the master to ... the position at the end of the previous cam");
-* slave ``"absolute"``: the pending table's position plus ``SlaveOffset`` ("evaluated
-  independent of the current position of the slave. This can lead to jumps");
-* slave ``"relative"``: the slave's position at the boundary becomes the pending table's offset
-  ("The position that the slave has after the end of the previous cycle is added as a slave
-  offset"), so the switch is continuous in position when the pending table is 0 where it is
-  entered.
+* offsets: ``MasterOffset`` and ``SlaveOffset`` come with the engagement and again with each
+  switch (a new ``MC_CamIn``): the table is looked up at ``X = master - zero + MasterOffset``
+  ("X = MasterScaling * MasterPosition + MasterOffset", scaling 1) and the slave is
+  ``CAM(X) + SlaveOffset + base``; the engagement is StartMode absolute (zero = base = 0);
+* master ``"absolute"``: zero = 0 (the table "is started at the current master position");
+  refused for a table that does not repeat, whose range the boundary can miss (CODESYS:
+  SMC_CI_MASTER_OUT_OF_SCALE);
+* master ``"relative"``: zero = the boundary ("sets the zero point of the master to ... the
+  position at the end of the previous cam"); a table that does not repeat must contain
+  ``MasterOffset``, where it is entered;
+* slave ``"absolute"``: base = 0 ("evaluated independent of the current position of the slave.
+  This can lead to jumps");
+* slave ``"relative"``: base = the slave's position at the boundary ("The position that the slave
+  has after the end of the previous cycle is added as a slave offset"), so with ``SlaveOffset``
+  0 the switch is continuous in position when the pending table is 0 where it is entered.
 
 The arithmetic is the C runtime's, bit for bit: master positions are int64 counts modulo 2^64,
 slave positions int32 counts modulo 2^32, and every refusal has the C code
@@ -135,12 +137,12 @@ class SwitchPair:
         self._armed = False
         self._mode = 0
         self._switches = 0
+        self._pending_master = 0  # the pending switch's MasterOffset (mod 2^64)
+        self._pending_slave = 0  # and SlaveOffset (mod 2^32)
         self._origin = 0  # master position (mod 2^64) where the running table's lookup sees 0
         self._window = 0  # the running table's master at the start of the last sample's period
-        self._master_zero = 0
         self._boundary = 0
         self._offset = 0  # added to the running table's position (mod 2^32)
-        self._slave_zero = 0
         self._started = False
         self._ended = False
 
@@ -194,13 +196,12 @@ class SwitchPair:
         validate.integer("slave_offset", slave_offset, minimum=-(1 << 31), maximum=(1 << 31) - 1)
         _check_table(table)
         self._clear()
-        self._master_zero = -master_offset & _U64
-        self._origin = self._master_zero
-        self._slave_zero = slave_offset & _U32
-        self._offset = self._slave_zero
+        self._origin = -master_offset & _U64
+        self._offset = slave_offset & _U32
         self._running = table
 
-    def arm(self, table: CamTable, master: str = "absolute", slave: str = "absolute") -> None:
+    def arm(self, table: CamTable, master: str = "absolute", slave: str = "absolute", master_offset: int = 0,
+            slave_offset: int = 0) -> None:
         """Queue ``table`` to take over at the next period boundary the master crosses.
 
         Parameters
@@ -208,15 +209,19 @@ class SwitchPair:
         table : CamTable
         master, slave : {"absolute", "relative"}
             PLCopen ``MC_CamTableSelect.MasterAbsolute`` / ``SlaveAbsolute`` (absolute: TRUE).
+        master_offset : int
+            The switch's ``MC_CamIn.MasterOffset`` [master counts, int64].
+        slave_offset : int
+            The switch's ``MC_CamIn.SlaveOffset`` [slave counts, int32].
 
         Raises
         ------
         SwitchRefused
             As :meth:`arm_mode`.
         """
-        self.arm_mode(table, mode_flags(master, slave))
+        self.arm_mode(table, mode_flags(master, slave), master_offset, slave_offset)
 
-    def arm_mode(self, table: CamTable, mode: int) -> None:
+    def arm_mode(self, table: CamTable, mode: int, master_offset: int = 0, slave_offset: int = 0) -> None:
         """:meth:`arm` with the C mode bits (``ecam_switch_arm``).
 
         Raises
@@ -224,9 +229,14 @@ class SwitchPair:
         SwitchRefused
             In the C order: ``E_NULL`` (None), ``E_NOT_ENGAGED``, ``E_ARMED`` (a switch is
             already armed), ``E_TABLE`` (not a CamTable), ``E_MODE`` (a bit other than
-            :data:`MASTER_RELATIVE` and :data:`SLAVE_RELATIVE`), ``E_MASTER_RANGE`` (master
-            absolute into a table that does not repeat). A refusal changes nothing.
+            :data:`MASTER_RELATIVE` and :data:`SLAVE_RELATIVE`), ``E_MASTER_RANGE`` (a table that
+            does not repeat with the master absolute, or entered at a ``master_offset`` outside
+            its range). A refusal changes nothing.
+        InputError
+            An offset outside int64 / int32.
         """
+        validate.integer("master_offset", master_offset, minimum=-(1 << 63), maximum=(1 << 63) - 1)
+        validate.integer("slave_offset", slave_offset, minimum=-(1 << 31), maximum=(1 << 31) - 1)
         if table is None:
             raise SwitchRefused("table: None should be a CamTable", "ECAM_SWITCH_E_NULL")
         if self._running is None:
@@ -237,12 +247,18 @@ class SwitchPair:
         if isinstance(mode, bool) or not isinstance(mode, int) or mode & ~(MASTER_RELATIVE | SLAVE_RELATIVE):
             raise SwitchRefused(f"mode: {validate.show(mode)} should be 0..3 (MASTER_RELATIVE | SLAVE_RELATIVE)",
                                 "ECAM_SWITCH_E_MODE")
-        if not mode & MASTER_RELATIVE and not table.periodic:
+        if not table.periodic and not mode & MASTER_RELATIVE:
             raise SwitchRefused(f"master: 'absolute' should be 'relative' for a table that does not repeat: the "
                                 f"boundary can fall outside its master range 0..{table.master_counts}",
                                 "ECAM_SWITCH_E_MASTER_RANGE")
+        if not table.periodic and not 0 <= master_offset <= table.master_counts:
+            raise SwitchRefused(f"master_offset: {master_offset} should be within the master range "
+                                f"0..{table.master_counts} of a table that does not repeat, where it is entered",
+                                "ECAM_SWITCH_E_MASTER_RANGE")
         self._pending = table
         self._mode = mode
+        self._pending_master = master_offset & _U64
+        self._pending_slave = slave_offset & _U32
         self._armed = True
 
     def cancel(self) -> None:
@@ -307,8 +323,9 @@ class SwitchPair:
     def _take_over(self, boundary: int, master: int) -> int:
         at = (self._running.lookup(_s64(boundary)) + self._offset) & _U32
         where = (boundary + self._origin) & _U64
-        self._origin = where if self._mode & MASTER_RELATIVE else self._master_zero
-        self._offset = at if self._mode & SLAVE_RELATIVE else self._slave_zero
+        # X = master - zero + MasterOffset, Y = CAM(X) + SlaveOffset + base
+        self._origin = ((where if self._mode & MASTER_RELATIVE else 0) - self._pending_master) & _U64
+        self._offset = ((at if self._mode & SLAVE_RELATIVE else 0) + self._pending_slave) & _U32
         self._running = self._pending
         self._boundary = where
         local = (master - self._origin) & _U64

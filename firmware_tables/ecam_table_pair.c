@@ -52,12 +52,12 @@ void ecam_switch_init(ecam_switch_pair *pair)
         pair->armed = 0u;
         pair->mode = 0u;
         pair->switches = 0u;
+        pair->pending_master = 0u;
         pair->origin = 0u;
         pair->window = 0u;
-        pair->master_zero = 0u;
         pair->boundary = 0u;
+        pair->pending_slave = 0u;
         pair->offset = 0u;
-        pair->slave_zero = 0u;
         pair->started = 0u;
         pair->ended = 0u;
     }
@@ -74,15 +74,14 @@ int ecam_switch_engage(ecam_switch_pair *pair, const ecam_table *table, int64_t 
     }
     ecam_switch_init(pair);
     /* CODESYS: X = MasterPosition + MasterOffset, so the table's 0 sits at -MasterOffset */
-    pair->master_zero = 0u - (uint64_t)master_offset;
-    pair->origin = pair->master_zero;
-    pair->slave_zero = (uint32_t)slave_offset;
-    pair->offset = pair->slave_zero;
+    pair->origin = 0u - (uint64_t)master_offset;
+    pair->offset = (uint32_t)slave_offset;
     pair->running = table;
     return ECAM_SWITCH_OK;
 }
 
-int ecam_switch_arm(ecam_switch_pair *pair, const ecam_table *table, unsigned mode)
+int ecam_switch_arm(ecam_switch_pair *pair, const ecam_table *table, unsigned mode,
+                    int64_t master_offset, int32_t slave_offset)
 {
     if (pair == NULL || table == NULL) {
         return ECAM_SWITCH_E_NULL;
@@ -99,15 +98,21 @@ int ecam_switch_arm(ecam_switch_pair *pair, const ecam_table *table, unsigned mo
     if ((mode & ~(ECAM_SWITCH_MASTER_RELATIVE | ECAM_SWITCH_SLAVE_RELATIVE)) != 0u) {
         return ECAM_SWITCH_E_MODE;
     }
-    /* Master absolute enters the table wherever the boundary falls in absolute coordinates; a
-     * table that does not repeat has a range the boundary can miss (CODESYS:
-     * SMC_CI_MASTER_OUT_OF_SCALE), so firmware refuses it here rather than mid-motion. */
-    if ((mode & ECAM_SWITCH_MASTER_RELATIVE) == 0u && table->periodic == 0u) {
+    /* A table that does not repeat must be entered inside its range (CODESYS reports
+     * SMC_CI_MASTER_OUT_OF_SCALE mid-motion; firmware refuses it here). Master absolute enters it
+     * wherever the boundary falls, and a running periodic table has a boundary at every multiple
+     * of its period: refused. Master relative enters it at MasterOffset: that must lie in
+     * 0..M. */
+    if (table->periodic == 0u &&
+        ((mode & ECAM_SWITCH_MASTER_RELATIVE) == 0u || master_offset < 0 ||
+         master_offset > (int64_t)table->master_counts)) {
         return ECAM_SWITCH_E_MASTER_RANGE;
     }
-    /* Not armed, so the interrupt reads neither field now; the flag is stored last. */
+    /* Not armed, so the interrupt reads none of these now; the flag is stored last. */
     pair->pending = table;
     pair->mode = (uint32_t)mode;
+    pair->pending_master = (uint64_t)master_offset;
+    pair->pending_slave = (uint32_t)slave_offset;
     ECAM_MEMORY_BARRIER();
     pair->armed = 1u;
     return ECAM_SWITCH_OK;
@@ -141,8 +146,9 @@ static uint64_t ecam_switch_take_over(ecam_switch_pair *pair, uint64_t boundary,
                         pair->offset;
     const uint64_t where = boundary + pair->origin;
     uint64_t local;
-    pair->origin = (mode & ECAM_SWITCH_MASTER_RELATIVE) != 0u ? where : pair->master_zero;
-    pair->offset = (mode & ECAM_SWITCH_SLAVE_RELATIVE) != 0u ? at : pair->slave_zero;
+    /* X = master - zero + MasterOffset, Y = CAM(X) + SlaveOffset + base (ecam_table_pair.h) */
+    pair->origin = ((mode & ECAM_SWITCH_MASTER_RELATIVE) != 0u ? where : 0u) - pair->pending_master;
+    pair->offset = ((mode & ECAM_SWITCH_SLAVE_RELATIVE) != 0u ? at : 0u) + pair->pending_slave;
     pair->running = next;
     pair->boundary = where;
     local = (uint64_t)master - pair->origin;

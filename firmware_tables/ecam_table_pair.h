@@ -20,33 +20,36 @@
  * which spells out a switch, and as ecam's own `ecam check A --then B` (ecam/cam_join.py)
  * predicts it:
  *
- *   engagement   MC_CamIn with StartMode absolute: the table is looked up at
- *                master + MasterOffset ("X = MasterScaling * MasterPosition + MasterOffset", scaling
- *                1) and SlaveOffset is added to its position ("Y = SlaveScaling * CAM(X) +
- *                SlaveOffset"). For a relative start pass MasterOffset = -master and SlaveOffset =
- *                the slave's position.
- *   master absolute  the pending table is looked up at master + MasterOffset, as at engagement:
- *                it "is started at the current master position" (CODESYS), wherever that falls
- *                in its period. Refused for a pending table that does not repeat
- *                (ECAM_SWITCH_E_MASTER_RANGE: CODESYS reports SMC_CI_MASTER_OUT_OF_SCALE when the
- *                master falls outside its range; the boundaries of a running periodic table lie at
- *                every multiple of its period).
- *   master relative  the pending table's master 0 is the boundary: it "sets the zero point of
- *                the master to ... the position at the end of the previous cam", which "allows
- *                the new cam to be connected exactly to the previous one" (CODESYS); Beckhoff
- *                (MC_StartMode): "the origin of the cam plate coordinate system is at the axis
- *                position ... at the time of coupling or cam plate switching". A master crossing
- *                the boundary backwards enters the pending table below its 0: a periodic one at
- *                its period end (the lookup wraps), one that does not repeat holds its start.
- *   slave absolute   the pending table's position plus SlaveOffset (from the engagement): "the
- *                cam is evaluated independent of the current position of the slave. This can lead
- *                to jumps" (CODESYS, StartMode absolute).
- *   slave relative   the slave's position at the boundary (the running table's position there,
- *                plus its offset) becomes the offset of the pending table: "The position that the
- *                slave has after the end of the previous cycle is added as a slave offset to the
- *                new evaluations of the cam" (CODESYS, StartMode relative). The switch is then
- *                continuous in position whenever the pending table is 0 where it is entered (a
- *                cam that starts at 0, entered with the master relative), the same condition
+ *   offsets      MC_CamIn's MasterOffset and SlaveOffset, given at the engagement and again with
+ *                each switch (a switch is a new MC_CamIn): the table is looked up at
+ *                X = master - zero + MasterOffset ("X = MasterScaling * MasterPosition +
+ *                MasterOffset", scaling 1) and the slave is Y = CAM(X) + SlaveOffset + base
+ *                ("Y = SlaveScaling * CAM(X) + SlaveOffset"), with zero and base as below. The
+ *                engagement is StartMode absolute (zero = 0, base = 0); for a relative start pass
+ *                MasterOffset = -master and SlaveOffset = the slave's position.
+ *   master absolute  zero = 0: the pending table "is started at the current master position"
+ *                (CODESYS), wherever that falls in its period. Refused for a pending table that
+ *                does not repeat (ECAM_SWITCH_E_MASTER_RANGE: CODESYS reports
+ *                SMC_CI_MASTER_OUT_OF_SCALE when the master falls outside its range; the
+ *                boundaries of a running periodic table lie at every multiple of its period).
+ *   master relative  zero = the boundary: it "sets the zero point of the master to ... the
+ *                position at the end of the previous cam", which "allows the new cam to be
+ *                connected exactly to the previous one" (CODESYS); Beckhoff (MC_StartMode): "the
+ *                origin of the cam plate coordinate system is at the axis position ... at the time
+ *                of coupling or cam plate switching". The table is entered at X = MasterOffset,
+ *                which must lie in the range of a table that does not repeat ("The
+ *                MasterAbsolute=FALSE mode may be used only if the value 0 is in the master value
+ *                range", CODESYS; ECAM_SWITCH_E_MASTER_RANGE otherwise). A master crossing the
+ *                boundary backwards enters the table below that: a periodic one wraps to its
+ *                period end, one that does not repeat holds its start.
+ *   slave absolute   base = 0: "the cam is evaluated independent of the current position of the
+ *                slave. This can lead to jumps" (CODESYS, StartMode absolute).
+ *   slave relative   base = the slave's position at the boundary (the running table's position
+ *                there, plus its offset): "The position that the slave has after the end of the
+ *                previous cycle is added as a slave offset to the new evaluations of the cam"
+ *                (CODESYS, StartMode relative). With SlaveOffset 0 the switch is continuous in
+ *                position whenever the pending table is 0 where it is entered (a cam that starts
+ *                at 0, entered with the master relative), the condition
  *                `ecam check A --then B --slave relative` checks.
  *
  * The boundary: a periodic running table's periods are [origin + k M, origin + (k+1) M) with
@@ -70,7 +73,8 @@
  *
  * Concurrency (single core; the main loop at a lower priority than the interrupt that steps):
  *   main loop:  ecam_switch_engage(&pair, &a, master_offset, slave_offset) before the interrupt
- *               steps the pair; later ecam_switch_arm(&pair, &b, mode), ecam_switch_cancel(&pair).
+ *               steps the pair; later ecam_switch_arm(&pair, &b, mode, master_offset,
+ *               slave_offset), ecam_switch_cancel(&pair).
  *   interrupt:  rc = ecam_switch_step(&pair, master, &position, &slope) once per cycle.
  * Arming writes the pending table and its mode, then the armed flag (volatile stores in this
  * order); the interrupt reads the pending table only when the flag is set, and it alone changes
@@ -107,7 +111,7 @@ typedef enum ecam_switch_status {
     ECAM_SWITCH_E_MODE = -43,           /* a mode bit other than the two above */
     ECAM_SWITCH_E_ARMED = -44,          /* a switch is already pending: cancel it first */
     ECAM_SWITCH_E_NO_PENDING = -45,     /* ecam_switch_cancel: nothing is armed */
-    ECAM_SWITCH_E_MASTER_RANGE = -46,   /* master absolute into a table that does not repeat */
+    ECAM_SWITCH_E_MASTER_RANGE = -46,   /* a table that does not repeat, entered outside its range */
     ECAM_SWITCH_E_SWITCHED = -47        /* ecam_switch_cancel: too late, the switch happened */
 } ecam_switch_status;
 
@@ -121,12 +125,12 @@ typedef struct ecam_switch_pair {
     volatile uint32_t armed;            /* 1: pending takes over at the next boundary */
     volatile uint32_t mode;             /* ECAM_SWITCH_* bits of the pending switch */
     volatile uint32_t switches;         /* switches done since the engagement (wraps) */
+    uint64_t pending_master;  /* the pending switch's MasterOffset, as uint64 bits */
     uint64_t origin;      /* master position where the running table's lookup sees 0 (mod 2^64) */
     uint64_t window;      /* the running table's master at the start of the last sample's period */
-    uint64_t master_zero; /* absolute master coordinates: -MasterOffset (mod 2^64) */
     uint64_t boundary;    /* master position of the last switch (mod 2^64) */
+    uint32_t pending_slave;   /* the pending switch's SlaveOffset, as uint32 bits */
     uint32_t offset;      /* added to the running table's position (mod 2^32) */
-    uint32_t slave_zero;  /* absolute slave coordinates: SlaveOffset (mod 2^32) */
     uint8_t started;      /* a sample has placed the window */
     uint8_t ended;        /* a running table that does not repeat: the last sample was outside it */
 } ecam_switch_pair;
@@ -145,11 +149,13 @@ int ecam_switch_engage(ecam_switch_pair *pair, const ecam_table *table, int64_t 
 
 /*
  * Arm `table` to take over at the next period boundary the master crosses, with `mode` (0, or
- * ECAM_SWITCH_MASTER_RELATIVE and/or ECAM_SWITCH_SLAVE_RELATIVE). Refusals, checked in this
- * order: ECAM_SWITCH_E_NULL, ECAM_SWITCH_E_NOT_ENGAGED, ECAM_SWITCH_E_ARMED, ECAM_SWITCH_E_TABLE,
+ * ECAM_SWITCH_MASTER_RELATIVE and/or ECAM_SWITCH_SLAVE_RELATIVE) and the new MC_CamIn's
+ * MasterOffset and SlaveOffset (0, 0 for none). Refusals, checked in this order:
+ * ECAM_SWITCH_E_NULL, ECAM_SWITCH_E_NOT_ENGAGED, ECAM_SWITCH_E_ARMED, ECAM_SWITCH_E_TABLE,
  * ECAM_SWITCH_E_MODE, ECAM_SWITCH_E_MASTER_RANGE; a refusal changes nothing.
  */
-int ecam_switch_arm(ecam_switch_pair *pair, const ecam_table *table, unsigned mode);
+int ecam_switch_arm(ecam_switch_pair *pair, const ecam_table *table, unsigned mode,
+                    int64_t master_offset, int32_t slave_offset);
 
 /*
  * Withdraw the armed switch: ECAM_SWITCH_OK (it will not happen), ECAM_SWITCH_E_NO_PENDING

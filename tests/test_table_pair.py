@@ -68,10 +68,15 @@ def python_tables(blobs: list[bytes]) -> list:
     return out
 
 
+def command(cmd) -> tuple:
+    """A command as the driver's five words (op, a, b, c, d): shorter tuples end in zeros."""
+    return tuple(cmd) + (0,) * (5 - len(cmd))
+
+
 def run_python(script, tables) -> list[tuple]:
     """What switch_check prints for ``script``, computed by SwitchPair."""
     pair, out = SwitchPair(), []
-    for op, a, b, c in script:
+    for op, a, b, c, d in map(command, script):
         table = tables[a] if 0 <= a < len(tables) else None
         rc, position, slope = 0, INVALID, INVALID
         try:
@@ -80,7 +85,7 @@ def run_python(script, tables) -> list[tuple]:
             elif op == ENGAGE:
                 pair.engage(table, b, c)
             elif op == ARM:
-                pair.arm_mode(table, b)
+                pair.arm_mode(table, b, c, d)
             elif op == CANCEL:
                 pair.cancel()
             else:
@@ -94,7 +99,7 @@ def run_python(script, tables) -> list[tuple]:
 
 def driver_args(directory: Path, script) -> list[str]:
     """Write ``script`` beside the pool's blobs; the driver's arguments (relative to directory)."""
-    np.asarray(script, dtype="<i8").reshape(-1, 4).tofile(directory / "script.i64")
+    np.asarray([command(c) for c in script], dtype="<i8").reshape(-1, 5).tofile(directory / "script.i64")
     blobs = sorted(directory.glob("t*.bin"), key=lambda p: int(p.stem[1:]))
     return ["script.i64", "out.i64", *(p.name for p in blobs)]
 
@@ -245,22 +250,29 @@ def test_a_relative_slave_is_continuous_into_a_cam_that_starts_at_zero(driver):
 def test_master_absolute_enters_the_pending_table_at_the_master_position(driver):
     """Master absolute: SINE is looked up at master + MasterOffset (CODESYS: "started at the
     current master position"), mid-period when the periods differ; slave absolute: plus
-    SlaveOffset."""
+    SlaveOffset (both the switch's, here the engagement's again)."""
     tables = driver[1]
     M = tables[DRRD].master_counts
-    out = both(driver, [(ENGAGE, DRRD, 100, 5), *steps([M - 101]), (ARM, SINE, 0, 0), *steps([M - 100, M - 99])])
+    out = both(driver, [(ENGAGE, DRRD, 100, 5), *steps([M - 101]), (ARM, SINE, 0, 100, 5), *steps([M - 100, M - 99])])
     assert out[3][0] == CODES["ECAM_SWITCH_DONE"] and out[3][3] == M - 100
     assert [out[3][1], out[4][1]] == [tables[SINE].lookup(M) + 5, tables[SINE].lookup(M + 1) + 5]
 
 
-def test_absolute_after_relative_returns_to_the_engaged_coordinates(driver):
+def test_each_switch_brings_its_own_mc_camin_offsets(driver):
+    """A switch is a new MC_CamIn: X = master - zero + MasterOffset, Y = CAM(X) + SlaveOffset +
+    base. Relative master and slave with offsets (500, -3): SINE entered at its 500, on top of
+    the slave's position at the boundary, minus 3; then DRRD absolute with (-20, 9): DRRD at
+    master - 20, plus 9, whatever came before."""
     tables = driver[1]
     M, S = tables[DRRD].master_counts, tables[SINE].master_counts
-    script = [(ENGAGE, DRRD, 0, 7), *steps([M - 1]), (ARM, SINE, BOTH, 0), *steps([M, M + S - 1]),
-              (ARM, DRRD, 0, 0), *steps([M + S, M + S + 1])]  # fmt: skip
+    script = [(ENGAGE, DRRD, 0, 7), *steps([M - 1]), (ARM, SINE, BOTH, 500, -3), *steps([M, M + S - 501]),
+              (ARM, DRRD, 0, -20, 9), *steps([M + S - 500, M + S - 499])]  # fmt: skip
     out = both(driver, script)
-    assert out[-2][0] == CODES["ECAM_SWITCH_DONE"] and out[-2][3] == M + S and out[-2][4] == 2
-    assert [out[-2][1], out[-1][1]] == [tables[DRRD].lookup(M + S) + 7, tables[DRRD].lookup(M + S + 1) + 7]
+    at = tables[DRRD].lookup(M) + 7
+    assert out[3][0] == CODES["ECAM_SWITCH_DONE"] and out[3][1] == tables[SINE].lookup(500) + at - 3
+    assert out[4][1] == tables[SINE].lookup(S - 1) + at - 3
+    assert out[-2][0] == CODES["ECAM_SWITCH_DONE"] and out[-2][3] == M + S - 500 and out[-2][4] == 2
+    assert [out[-2][1], out[-1][1]] == [tables[DRRD].lookup(M + S - 520) + 9, tables[DRRD].lookup(M + S - 519) + 9]
 
 
 # ------------------------------------------------------------------------------ tables that do not repeat
@@ -291,7 +303,8 @@ def test_every_refusal_has_its_code_in_both(driver):
         (ARM, BROKEN, 0, 0),
         (ARM, SINE, 4, 0),  # an unknown mode bit
         (ARM, SINGLE, SLAVE_RELATIVE, 0),  # master absolute into a table that does not repeat
-        (ARM, SINGLE, BOTH, 0),  # master relative: accepted
+        (ARM, SINGLE, BOTH, 3001),  # entered past its range
+        (ARM, SINGLE, BOTH, 3000),  # master relative, entered at its end: accepted
         (ARM, SINE, 0, 0),  # already armed
         (CANCEL, 0, 0, 0),
         (CANCEL, 0, 0, 0),
@@ -301,11 +314,12 @@ def test_every_refusal_has_its_code_in_both(driver):
     out = both(driver, script)
     names = ["ECAM_SWITCH_E_NOT_ENGAGED", "ECAM_SWITCH_E_NOT_ENGAGED", "ECAM_SWITCH_E_TABLE", "ECAM_SWITCH_E_NULL",
              "ECAM_SWITCH_OK", "ECAM_SWITCH_E_NO_PENDING", "ECAM_SWITCH_E_NULL", "ECAM_SWITCH_E_TABLE",
-             "ECAM_SWITCH_E_MODE", "ECAM_SWITCH_E_MASTER_RANGE", "ECAM_SWITCH_OK", "ECAM_SWITCH_E_ARMED",
+             "ECAM_SWITCH_E_MODE", "ECAM_SWITCH_E_MASTER_RANGE", "ECAM_SWITCH_E_MASTER_RANGE", "ECAM_SWITCH_OK",
+             "ECAM_SWITCH_E_ARMED",
              "ECAM_SWITCH_OK", "ECAM_SWITCH_E_NO_PENDING", "ECAM_SWITCH_OK", "ECAM_SWITCH_E_NOT_ENGAGED"]  # fmt: skip
     assert [row[0] for row in out] == [CODES[n] for n in names]
     assert out[0][1:3] == (INVALID, INVALID)
-    assert [row[5] for row in out[9:14]] == [0, 1, 1, 0, 0]  # a refusal changes nothing
+    assert [row[5] for row in out[9:15]] == [0, 0, 1, 1, 0, 0]  # a refusal changes nothing
 
 
 def test_a_cancelled_switch_does_not_happen(driver):
@@ -350,7 +364,9 @@ def scripts(draw):
     for _ in range(draw(st.integers(1, 40))):
         kind = draw(st.sampled_from(("step",) * 6 + ("arm", "arm", "cancel")))
         if kind == "arm":
-            script.append((ARM, draw(st.integers(-1, BROKEN)), draw(st.sampled_from((0, 1, 2, 3, 3, 4))), 0))
+            script.append((ARM, draw(st.integers(-1, BROKEN)), draw(st.sampled_from((0, 1, 2, 3, 3, 4))),
+                           draw(st.one_of(st.just(0), st.integers(-3, 3010), st.integers(-(2**40), 2**40))),
+                           draw(st.one_of(st.just(0), st.integers(-(2**31), 2**31 - 1)))))
         elif kind == "cancel":
             script.append((CANCEL, 0, 0, 0))
         else:
@@ -380,7 +396,10 @@ def random_script(rng: np.random.Generator, commands: int) -> list[tuple]:
             continue
         r = rng.random()
         if r < 0.12:
-            script.append((ARM, int(rng.integers(-1, BROKEN + 1)), int(rng.choice([0, 1, 2, 3, 3, 4])), 0))
+            master_offset = int(rng.choice([0, 0, rng.integers(-3, 3010), rng.integers(-(2**40), 2**40)]))
+            slave_offset = int(rng.choice([0, 0, rng.integers(-(2**31), 2**31)]))
+            script.append((ARM, int(rng.integers(-1, BROKEN + 1)), int(rng.choice([0, 1, 2, 3, 3, 4])), master_offset,
+                           slave_offset))  # fmt: skip
         elif r < 0.15:
             script.append((CANCEL, 0, 0, 0))
         else:

@@ -6,10 +6,10 @@
  *   switch_check SCRIPT OUT BLOB...
  *
  * BLOB...: tables 0, 1, ... (ecam_table_init; a rejected blob stays a table that is not ready).
- * SCRIPT: commands of four int64 LE words (op, a, b, c):
+ * SCRIPT: commands of five int64 LE words (op, a, b, c, d):
  *   0 init                   ecam_switch_init
  *   1 engage  T MO SO        ecam_switch_engage(table T (-1: NULL), master offset, slave offset)
- *   2 arm     T MODE         ecam_switch_arm(table T (-1: NULL), mode)
+ *   2 arm     T MODE MO SO   ecam_switch_arm(table T (-1: NULL), mode, master offset, slave offset)
  *   3 cancel                 ecam_switch_cancel
  *   4 step    MASTER         ecam_switch_step
  * OUT: per command six int64 LE words: result, position, slope (ECAM_INVALID unless a step),
@@ -71,19 +71,20 @@ int main(int argc, char **argv)
         (void)ecam_table_init(&tables[i], blob, blob_len);
     }
     script = ecam_host_read_file(argv[1], &len);
-    if (script == NULL || len % 32u != 0u) {
-        fprintf(stderr, "switch_check: cannot read %s as 32-byte commands\n", argv[1]);
+    if (script == NULL || len % 40u != 0u) {
+        fprintf(stderr, "switch_check: cannot read %s as 40-byte commands\n", argv[1]);
         return 2;
     }
-    count = len / 32u;
+    count = len / 40u;
     out = malloc(count * 48u + 1u);
     if (out == NULL) {
         return 2;
     }
     ecam_switch_init(&pair);
     for (k = 0; k < count; k++) {
-        const int64_t op = get_i64(script + 32u * k), a = get_i64(script + 32u * k + 8u);
-        const int64_t b = get_i64(script + 32u * k + 16u), c = get_i64(script + 32u * k + 24u);
+        const uint8_t *command = script + 40u * k;
+        const int64_t op = get_i64(command), a = get_i64(command + 8u), b = get_i64(command + 16u);
+        const int64_t c = get_i64(command + 24u), d = get_i64(command + 32u);
         const ecam_table *t = (a >= 0 && a < n) ? &tables[a] : NULL;
         int32_t position = ECAM_INVALID, slope = ECAM_INVALID;
         int rc = 0;
@@ -95,7 +96,7 @@ int main(int argc, char **argv)
             rc = ecam_switch_engage(&pair, t, b, (int32_t)c);
             break;
         case 2:
-            rc = ecam_switch_arm(&pair, t, (unsigned)b);
+            rc = ecam_switch_arm(&pair, t, (unsigned)b, c, (int32_t)d);
             break;
         case 3:
             rc = ecam_switch_cancel(&pair);

@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 from .errors import InputError
-from .validate import show
+from .validate import show, show_path
 
 __all__ = ["write_files", "write_group", "check_group", "check_outputs", "STALE_TEMPORARY_S"]
 
@@ -76,7 +76,7 @@ def check_outputs(paths, inputs=()) -> None:
                 continue
             taken[(info.st_dev, info.st_ino)] = item
     for path in paths:
-        shown = show(str(path))
+        shown = show_path(path)
         try:
             here = os.lstat(path)
         except FileNotFoundError:
@@ -105,7 +105,7 @@ def check_outputs(paths, inputs=()) -> None:
                                      "or a new path")
         if (here.st_dev, here.st_ino) in taken:
             source = taken[(here.st_dev, here.st_ino)]
-            raise InputError(f"output {shown} is the input file {show(str(source))}: writing it "
+            raise InputError(f"output {shown} is the input file {show_path(source)}: writing it "
                              "would replace it; choose another output path")
 
 
@@ -207,7 +207,7 @@ def check_group(manifest) -> list[Path]:
         (a group half switched by a killed writer, or edited since).
     """
     manifest = Path(manifest)
-    shown = show(str(manifest))
+    shown = show_path(manifest)
     try:
         with open(manifest, "rb") as handle:
             listing = json.loads(handle.read(_MAX_MANIFEST_BYTES + 1)[:_MAX_MANIFEST_BYTES])

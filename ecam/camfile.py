@@ -25,7 +25,7 @@ from .spline import spline_law
 from .table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from .tappet import DIRECTIONS, TAPPET_KEYS, TappetTrack
 from .table_spec import HORNER_BITS, MAX_COUNTS_PER_UNIT, MAX_POINTS, MIN_COUNTS_PER_UNIT, parse_tolerance
-from .validate import Fields, show
+from .validate import Fields, show, show_path
 
 __all__ = ["CAMS_DIR", "load_cam", "parse_cam", "read_bounded", "read_tappets", "read_toml", "show"]
 
@@ -80,7 +80,7 @@ def read_bounded(path, what: str, limit: int | None = None) -> bytes:
     """
     limit = MAX_FILE_BYTES if limit is None else limit
     path = Path(path)
-    shown = show(str(path))  # cut to 60 characters: a hostile path cannot flood the terminal
+    shown = show_path(path)  # cut to 60 characters: a hostile path cannot flood the terminal
     try:
         # O_NONBLOCK: opening a FIFO with no writer must not wait; the type check follows.
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
@@ -127,7 +127,7 @@ def read_toml(path, what: str) -> dict:
         the parser included): one line naming the file and what is wrong.
     """
     data = read_bounded(path, what)
-    shown = show(str(path))
+    shown = show_path(path)
     try:
         return tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:

@@ -32,7 +32,7 @@ import numpy as np
 from .camfile import read_bounded
 from .errors import InputError
 from .export.certify import Hermite
-from .validate import show
+from .validate import show, show_path
 
 __all__ = ["PointTable", "read_points", "parse_points", "MAX_POINTS_BYTES", "SAMPLES_PER_INTERVAL"]
 
@@ -117,7 +117,7 @@ def read_points(path) -> PointTable:
         A missing, unreadable, irregular or oversized file, or text that is not a point table.
     """
     path = Path(path)
-    shown = show(str(path))
+    shown = show_path(path)
     # camfile's bounded, non-blocking read (CamFileError is an InputError): one reader of users' files
     data = read_bounded(path, "points", MAX_POINTS_BYTES)
     try:

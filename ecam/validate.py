@@ -44,6 +44,13 @@ def show(value) -> str:
     return text if len(text) < 60 else text[:57] + "..."
 
 
+def show_path(path) -> str:
+    """A file's path for a one-line error message: its repr, cut in the middle to 60
+    characters, so that a long directory never hides the file's own name."""
+    text = repr(str(path))
+    return text if len(text) < 60 else text[:19] + "..." + text[-38:]
+
+
 def fail(field: str, value, expected: str, error=InputError) -> InputError:
     """The error for ``field`` holding ``value`` where ``expected`` was wanted (not raised).
 

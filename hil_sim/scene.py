@@ -106,7 +106,7 @@ from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
 from ecam.table_spec import MAX_COUNTS_PER_UNIT, MIN_COUNTS_PER_UNIT, TableSpec, parse_tolerance
-from ecam.validate import MAX_DESCRIPTION_CHARS, Fields, choice, fail, number, show
+from ecam.validate import MAX_DESCRIPTION_CHARS, Fields, choice, fail, number, show, show_path
 from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.drive.objects import interpolation_period
 from hil_sim.effects import DRIVE_FIELDS, FIDELITIES, MECHANICS_FIELDS
@@ -545,14 +545,14 @@ def _cam_file(raw: Fields, written: str, base: Path, key: str = "file") -> Path:
         raise raw.error(f"{name}: {show(written)} cannot be resolved: {reason[:120]}") from None
     if exists and not regular:
         raise raw.error(f"{name}: {show(written)} should be a regular file (resolved to "
-                        f"{show(str(file))})")
+                        f"{show_path(file)})")
     if not regular:
         # An installed package has no firmware_tables/ beside it: the shipped scenes' cams are
         # also ecam's built-in cams, found by file name.
         built_in = CAMS_DIR / Path(written).name
         if not built_in.is_file():
             raise raw.error(f"{name}: {show(written)} does not exist (resolved to "
-                            f"{show(str(file))})")
+                            f"{show_path(file)})")
         file = built_in.resolve()
     return file
 

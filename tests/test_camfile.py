@@ -237,3 +237,19 @@ def test_more_cli_bad_input(tmp_path, args, message):
     args = [a.format(cam=cam, tmp=tmp_path) for a in args]
     run = subprocess.run([sys.executable, "-m", "ecam.app", *args], capture_output=True, text=True)
     assert run.returncode == 2 and len(run.stderr.strip().splitlines()) == 1 and message in run.stderr, run.stderr
+
+
+def test_a_long_path_in_an_error_is_cut_in_the_middle_and_keeps_the_files_name(tmp_path):
+    from ecam.camfile import read_toml
+    from ecam.errors import CamFileError
+
+    deep = tmp_path.joinpath(*["a_rather_long_directory_name"] * 4)
+    deep.mkdir(parents=True)
+    broken = deep / "not_toml.toml"
+    broken.write_text("[unclosed\n")
+    with pytest.raises(CamFileError) as info:
+        read_toml(broken, "scene file")
+    message = str(info.value)
+    assert "not_toml.toml'" in message and "..." in message
+    shown = message.split("scene file ", 1)[1].split(" is not valid TOML")[0]
+    assert len(shown) < 61 and shown.startswith("'/")

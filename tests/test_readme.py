@@ -75,7 +75,7 @@ def test_ci_runs_the_readme_test_command():
     awk = re.search(r"awk '([^']+)' README.md", script).group(1)
     line = subprocess.run(["awk", awk, str(README)], capture_output=True, text=True,
                           check=True).stdout.strip()
-    assert line == "python3 -m pip install -e '.[test]' && python3 -m pytest -q"
+    assert line == "python3 -m pip install -e '.[test]' && python3 -m pytest -q -n auto --dist loadfile"
     first = README.read_text().split("```bash\n", 1)[1].splitlines()[0]
     assert first == "python3 -m pip install . && ecam demo"
 

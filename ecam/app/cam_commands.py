@@ -225,7 +225,7 @@ def write_table(table, name, directory: Path, formats, inputs=()) -> list[str]:
         directory.mkdir(parents=True, exist_ok=True)
         write_group(contents, manifest_path(name, directory), inputs)
     except OSError as exc:
-        raise InputError(f"output directory {validate.show(str(directory))} cannot be written: "
+        raise InputError(f"output directory {validate.show_path(directory)} cannot be written: "
                          f"{exc.strerror or exc}") from None
     return [str(path) for path in contents]
 

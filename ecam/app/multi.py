@@ -35,7 +35,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from ecam.errors import CamFileError, EcamError, InputError, SimulationError
-from ecam.validate import show
+from ecam.validate import show_path
 
 __all__ = ["SCENE_SECTIONS", "SceneCrashed", "is_scene_file", "scene_files", "run_scenes",
            "summary_table", "exit_status", "outcome_line", "scene_labels"]
@@ -91,13 +91,13 @@ def scene_files(paths) -> list[Path]:
         if os.path.isdir(path):  # os.path never raises (Path.is_dir does past NAME_MAX)
             inside = [p for p in sorted(path.rglob("*.toml")) if is_scene_file(p)]
             if not inside:
-                raise InputError(f"scene directory {show(str(path))} holds no scene file (*.toml "
+                raise InputError(f"scene directory {show_path(path)} holds no scene file (*.toml "
                                  f"with a [{'], ['.join(SCENE_SECTIONS[1:])}] table)")
             found.extend(inside)
         elif os.path.lexists(path):
             found.append(path)
         else:
-            raise InputError(f"scene {show(str(path))} does not exist")
+            raise InputError(f"scene {show_path(path)} does not exist")
     return found
 
 

@@ -114,13 +114,15 @@ def plan_sweep(path, samples: int | None = None, data: dict | None = None) -> Sw
     if samples is not None:
         spec = _with_samples(spec, integer("--samples", samples, minimum=1, maximum=1_000_000))
     profile = scene.cam.load_profile()
+    speeds = spec.speeds_per_second(scene, profile.master_period)
+    # Refused before the design is drawn: a design never has more rows than asked for, and
+    # drawing a million rows only to refuse them took seconds.
+    if spec.samples * len(speeds) > MAX_RUNS:
+        raise InputError(f"sweep: {spec.samples} samples x {len(speeds)} speeds = "
+                         f"{spec.samples * len(speeds)} runs should be <= {MAX_RUNS}")
     nominal = {name: nominal_value(data, name) for name, _ in spec.vary}
     drawn = design(spec.method, spec.distributions, spec.samples, spec.seed,
                    {k: v for k, v in nominal.items() if v is not None})
-    speeds = spec.speeds_per_second(scene, profile.master_period)
-    if drawn.samples * len(speeds) > MAX_RUNS:
-        raise InputError(f"sweep: {drawn.samples} samples x {len(speeds)} speeds = "
-                         f"{drawn.samples * len(speeds)} runs should be <= {MAX_RUNS}")
     gains = nominal_gains(scene.with_master_speed(speeds[0]).with_fidelity(spec.fidelity)) \
         if spec.tuning == "nominal" else None
     return SweepPlan(path=path, data=data, scene=scene, spec=spec, design=drawn,

@@ -39,7 +39,7 @@ def cmd_transition(args) -> int:
     try:
         write_files({out: text})
     except OSError as exc:
-        raise InputError(f"--output {validate.show(str(out))} cannot be written: {exc.strerror or exc}") from None
+        raise InputError(f"--output {validate.show_path(out)} cannot be written: {exc.strerror or exc}") from None
     joins = [join_cams(first, transition, master="relative", slave=args.slave),
              join_cams(transition, then, master="relative", slave=args.slave)]
     ok = all(j.report.ok and not j.report.warnings for j in joins)

@@ -2408,6 +2408,106 @@ static int32_t ecam_poly_narrow_quintic(const ecam_poly *p, int64_t m)
     return ecam_poly_kernel_of(p, m, 5u, false, true);
 }
 
+/* A period of M = 2^j master counts (and so h = 2^k): the wrap of any int64 master is its low j
+ * bits and k = floor(m / M) its shift by j (the low word of the logical shift is that of the
+ * arithmetic one for j <= 32), so no reduction at all. Without a net stroke there is no branch
+ * either: a master inside the period and any other cost the same. */
+static ECAM_INLINE int32_t ecam_poly_mask_of(const ecam_poly *p, int64_t m, unsigned n, bool narrow, bool net)
+{
+    uint32_t local = (uint32_t)m;
+    uint32_t term = 0u;
+
+    if (!net) {
+        local &= p->master_mask;
+    } else if ((uint64_t)m >= p->master_limit) { /* also every negative m; inside, as the others */
+        local &= p->master_mask;
+        term = (uint32_t)((uint64_t)m >> p->master_shift) * p->table->net_whole;
+    } else {
+        /* inside the period: k = 0 */
+    }
+    if (narrow) {
+        return ecam_i32((uint32_t)ecam_poly_narrow_at(p, local, n, true) + term);
+    }
+    return ecam_i32((uint32_t)ecam_poly_at(p, local, n, true) + term);
+}
+
+static int32_t ecam_poly_mask_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 1u, false, false);
+}
+
+static int32_t ecam_poly_mask_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, false, false);
+}
+
+static int32_t ecam_poly_mask_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, false, false);
+}
+
+static int32_t ecam_poly_mask_net_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 1u, false, true);
+}
+
+static int32_t ecam_poly_mask_net_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, false, true);
+}
+
+static int32_t ecam_poly_mask_net_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, false, true);
+}
+
+static int32_t ecam_poly_narrow_mask_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 1u, true, false);
+}
+
+static int32_t ecam_poly_narrow_mask_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, true, false);
+}
+
+static int32_t ecam_poly_narrow_mask_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, true, false);
+}
+
+static int32_t ecam_poly_narrow_mask_net_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 1u, true, true);
+}
+
+static int32_t ecam_poly_narrow_mask_net_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, true, true);
+}
+
+static int32_t ecam_poly_narrow_mask_net_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, true, true);
+}
+
+/* The kernel of a table whose period is M = 2^j (ecam_poly_mask_of), by degree, word width and
+ * net stroke. */
+static ecam_poly_kernel ecam_poly_mask_kernel(unsigned degree, bool narrow, bool net)
+{
+    static const ecam_poly_kernel wide[2][3] = {
+        {ecam_poly_mask_linear, ecam_poly_mask_cubic, ecam_poly_mask_quintic},
+        {ecam_poly_mask_net_linear, ecam_poly_mask_net_cubic, ecam_poly_mask_net_quintic}};
+    static const ecam_poly_kernel thin[2][3] = {
+        {ecam_poly_narrow_mask_linear, ecam_poly_narrow_mask_cubic, ecam_poly_narrow_mask_quintic},
+        {ecam_poly_narrow_mask_net_linear, ecam_poly_narrow_mask_net_cubic, ecam_poly_narrow_mask_net_quintic}};
+
+    if (narrow) { /* (32-bit cores only: ecam_poly_init picks no narrow kernel on 64-bit ones) */
+        return thin[net ? 1 : 0][degree / 2u];
+    }
+    return wide[net ? 1 : 0][degree / 2u];
+}
+
 /* Step 1 past [0, M): the table's clamp, or its wrap (and step 7's term), then the kernel again
  * with the master inside the period. */
 static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m)
@@ -2565,6 +2665,17 @@ int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t bu
         p->kernel = pow2 ? ecam_poly_cubic_pow2 : ecam_poly_cubic;
     } else {
         p->kernel = pow2 ? ecam_poly_quintic_pow2 : ecam_poly_quintic;
+    }
+    p->master_mask = t->master_counts - 1u;
+    if (pow2 && ((t->master_counts & p->master_mask) == 0u) && (t->ramp == 0u) &&
+        (p->outside != (uint8_t)ECAM_POLY_COLD)) { /* M = 2^j, no clamp, no fractional net stroke */
+        const bool narrow = (p->kernel == ecam_poly_narrow_linear_pow2) || (p->kernel == ecam_poly_narrow_cubic_pow2) ||
+                            (p->kernel == ecam_poly_narrow_quintic_pow2);
+
+        while ((UINT32_C(1) << p->master_shift) != t->master_counts) {
+            p->master_shift++;
+        }
+        p->kernel = ecam_poly_mask_kernel(t->degree, narrow, p->outside == (uint8_t)ECAM_POLY_WRAP_WHOLE);
     }
     if (t->ramp != 0u) { /* version 3: the kernel runs inside the ramp's */
         p->ramp_kernel = p->kernel;

@@ -56,6 +56,28 @@ def narrow_tables() -> list:
     return out
 
 
+def mask_tables() -> list:
+    """Periods of M = 2^j master counts (the mask kernels): without and with a whole net stroke,
+    at the ends of j (M = 2 and 2^31), in 32-bit and 64-bit words; a fractional net stroke and a
+    clamp keep the reduction."""
+    drrd = load_cam(ROOT / "firmware_tables" / "cams" / "combination_drrd.toml")
+    knife = load_cam(ROOT / "firmware_tables" / "cams" / "rotary_knife.toml")
+    out = []
+    for kind in ("linear", "cubic", "quintic"):
+        for bits in (32, 64):
+            out.append((f"mask-knife-{kind}-{bits}", compile_table(knife, interp=kind, points=17, master_counts=2**16,
+                                                                   horner_bits=bits, certify=False)))
+            out.append((f"mask-drrd-{kind}-{bits}", compile_table(drrd, interp=kind, points=65, master_counts=2**16,
+                                                                  horner_bits=bits, certify=False)))
+        out.append((f"mask-knife-2^31-{kind}", compile_table(knife, interp=kind, points=65, master_counts=2**31,
+                                                             certify=False)))
+        out.append((f"mask-drrd-2-{kind}", compile_table(drrd, interp=kind, points=3, master_counts=2,
+                                                         slave_counts_per_unit=1e-3, certify=False)))
+        out.append((f"mask-knife-frac-{kind}", compile_table(knife, interp=kind, points=17, master_counts=2**16,
+                                                             slave_counts_per_unit=1000.0001, certify=False)))
+    return out
+
+
 def test_horner_bits_32_gives_narrow_tables_and_says_what_it_costs():
     tables = dict(narrow_tables())
     assert all(narrow_horner(t) for t in tables.values())
@@ -74,7 +96,7 @@ def _cases():
         rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
         out.append((csv.stem, csv.with_suffix(".bin").read_bytes(), rows[:, 0]))
     rng = np.random.default_rng(27)
-    for name, table in narrow_tables():
+    for name, table in narrow_tables() + mask_tables():
         m = table.master_counts
         queries = np.concatenate([np.array([0, 1, m - 1, m, -1, -m, 2**63 - 1, -(2**63)], dtype=np.int64),
                                   rng.integers(-3 * m, 3 * m, 3000), rng.integers(-(2**63), 2**63 - 1, 1000)])

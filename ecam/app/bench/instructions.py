@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ecam.camfile import load_cam
 from ecam.compile import compile_table
 from ecam.table import KINDS, CamTable, narrow_horner
 
@@ -63,6 +64,11 @@ POLY_LIMITS = {"inside": 1.5, "wide": 2.0}
 # seed cam at a stroke of 2^20 counts (the bench's 1e9-count stroke leaves no such format).
 NARROW_CAM = "drrd-h32"
 NARROW_STROKE_COUNTS = 2**20
+# The golden rotary knife as a 32-bit core's firmware compiles it (horner_bits = 32 in its cam
+# file's [table]), and with a period of 2^16 master counts (17 points, h = 4096), whose expanded
+# form wraps any int64 master by a mask (full run only).
+KNIFE_H32_CAM = "rotary_knife-h32"
+KNIFE_POW2_CAM = "rotary_knife-2^16"
 HOST_FLAGS = ("-O2", "-std=c99")
 M4_OPTS = ("-Os", "-O2")
 _SEED = 20261123
@@ -471,6 +477,11 @@ def bench_tables(quick: bool) -> list:
             out.append((NARROW_CAM, compile_table(profile, interp=kind, points=points, master_counts=MASTER_COUNTS,
                                                   slave_counts_per_unit=NARROW_STROKE_COUNTS / (high - low),
                                                   horner_bits=32)))  # fmt: skip
+    if not quick:
+        knife = load_cam(FIRMWARE_DIR / "cams" / f"{NET_STROKE_CAM}.toml")
+        out += [(KNIFE_H32_CAM, compile_table(knife, interp="quintic", points=13, horner_bits=32)),
+                (KNIFE_POW2_CAM, compile_table(knife, interp="quintic", points=17, master_counts=2**16,
+                                               horner_bits=32))]
     return out
 
 
@@ -553,7 +564,8 @@ def instruction_rows(directory: Path, quick: bool) -> list[dict]:
     work.mkdir()
     try:
         blobs = {f"{cam} {t.interp}{', net stroke' if t.format.net_stroke_num else ''}":
-                 t.to_bytes() for cam, t in tables if t.points == 145 or t.format.net_stroke_num}
+                 t.to_bytes() for cam, t in tables
+                 if cam in (SEED_CAM, NET_STROKE_CAM, NARROW_CAM) and (t.points == 145 or t.format.net_stroke_num)}
         for f in m4_footprint(work, blobs, shared=shared):
             stack = f["stack_per_call"]
             apis = ("position", "slope", "lookup")

@@ -216,3 +216,15 @@ def test_drive_side_switches_run_the_same_on_the_bus_and_bus_free():
         assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
     switches = over_bus.summary["events"]["switches"]
     assert [s["master"] for s in switches] == [pytest.approx(360.0), pytest.approx(450.0)]
+
+
+def test_the_figure_shows_the_events_and_names_the_jump():
+    """The report's figure gets an events panel: the jumping switch in red in its title."""
+    from hil_sim.rig import run_scene
+    from hil_sim.rig.plot import report_figure
+
+    report = run_scene(load_scene(SCENES_DIR / "changeover_immediate.toml").with_fidelity("ideal"),
+                       path="fast")
+    assert not report.passed and not report.check("switch_jumps").passed
+    titles = [ax.get_title(loc="left") for ax in report_figure(report).axes]
+    assert "events: a switch jumps" in titles

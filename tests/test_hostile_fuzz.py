@@ -245,6 +245,9 @@ FUZZ_MAX_CYCLES = 120
 def scene_base(path: Path) -> dict:
     document = tomllib.loads(path.read_text())
     document["cam"]["file"] = str((path.parent / document["cam"]["file"]).resolve())
+    for event in document.get("event", []):  # a switch's cam, as the scene's (hil_sim.events)
+        if "cam" in event:
+            event["cam"] = str((path.parent / event["cam"]).resolve())
     if "points" in document["cam"]:
         document["cam"]["points"] = 37
         document["cam"]["master_counts"] = 36 * 128

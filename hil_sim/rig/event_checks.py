@@ -28,6 +28,7 @@ def event_checks(run) -> tuple[list[Check], dict, dict]:
             checks.append(_motion_check(outcome.motions, master_unit, slave_unit))
         if outcome.phase is not None:
             series["phase_shift"] = np.asarray(outcome.phase)
+        series["event_reference"] = np.asarray(plan.reference_units)  # the events panel's path
     if plan.tappets:
         summary["tappets"] = [t.to_dict() for t in plan.tappets]
         checks.append(_tappet_check(plan.tappets, run.scene.limits.tappet_error, master_unit))

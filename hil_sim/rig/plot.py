@@ -11,7 +11,9 @@ the periods of the run drawn over each other, one colour per period:
   (``peak_twist`` [rad], two-mass runs);
 - motor torque (peak per cycle) against the drive's torque limit, clamped cycles marked;
 - for a scene with a ``[motor]``: the torque-speed plot of a sizing tool (the S1 and peak curves,
-  the duty's operating points, :mod:`hil_sim.rig.sizing_plot`).
+  the duty's operating points, :mod:`hil_sim.rig.sizing_plot`);
+- for a scene with ``[[event]]``: the slave's ideal path over time with its switches, phase shift
+  and cam-out (:mod:`hil_sim.rig.event_plot`).
 
 Each panel's title is its check's verdict; the sample a check reads as its worst is ringed
 (in red, with its master position and period in the legend, when the check failed), master
@@ -39,6 +41,7 @@ from ecam.atomic_files import write_files
 from ecam.errors import InputError
 from ecam.plot import TEXT_AS_WRITTEN, check_figure_path
 from hil_sim.report import Report
+from hil_sim.rig.event_plot import draw_events, has_events
 from hil_sim.rig.sizing_plot import draw_torque_speed, has_torque_speed
 
 __all__ = ["plot_report", "figure_bytes", "report_figure", "period_index", "master_period",
@@ -296,7 +299,8 @@ def report_figure(report: Report, width_in: float = 11.0):
     units = report.summary.get("units") or {}
     panels = _panels(report)
     sized = int(has_torque_speed(report))  # a torque-speed panel after the others
-    rows = math.ceil((len(panels) + sized) / 2)
+    evented = int(has_events(report))  # and an events panel (hil_sim.rig.event_plot)
+    rows = math.ceil((len(panels) + sized + evented) / 2)
     # A fixed layout (margins in inches), not matplotlib's constrained layout: it measures
     # every text again and again, which doubles the time to draw, and the panels here always
     # have the same furniture (a one-line title, axis labels, ticks).
@@ -307,10 +311,12 @@ def report_figure(report: Report, width_in: float = 11.0):
     fig.subplots_adjust(left=0.9 / width_in, right=1.0 - 0.15 / width_in,
                         bottom=0.5 / height_in, top=1.0 - 0.7 / height_in,
                         wspace=1.1 / (width_in / 2), hspace=0.95 / row_in)
-    for ax in axes[len(panels) + sized:]:
+    for ax in axes[len(panels) + sized + evented:]:
         ax.set_visible(False)
     if sized:
         draw_torque_speed(axes[len(panels)], report)
+    if evented:
+        draw_events(axes[len(panels) + sized], report)
     band = count > MAX_OVERLAID_PERIODS
     # Bins of the band: at most BAND_BINS, and about two samples of each period per bin so
     # that no bin is empty (an empty bin would cut the band).

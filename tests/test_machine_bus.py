@@ -279,3 +279,91 @@ def test_bad_timing_fields_name_the_field(bus, drive, message):
     with pytest.raises(CamFileError) as raised:
         _machine(CONTROLLER_PAIR, bus, [drive])
     assert message in str(raised.value) and "\n" not in str(raised.value)
+
+
+# ---------------------------------------------------------------- `ecam drive` for several nodes
+
+def test_ecam_drive_checks_every_node_id_before_opening_the_bus(capsys):
+    """1.2.3.4 is no multicast group: had the bus been opened first, that would be the error."""
+    from ecam.app import cli
+    for ids, message in (("5,5", "node_id: 5 should be distinct"),
+                         ("5,128", "node_id: 128 should be an integer in 1..127")):
+        status = cli.main(["drive", "--interface", "udp_multicast", "--channel", "1.2.3.4",
+                           "--node-id", ids])
+        err = capsys.readouterr().err
+        assert status == 2 and err.count("\n") == 1 and message in err, err
+
+
+def test_ecam_drive_serves_one_drive_per_node_in_one_process():
+    """`--node-id 5 --node 6` (repeated, or 5,6): two drives on one in-process channel, each
+    with its own boot-up, SDO server and node id; a canopen master in this process reads both."""
+    import threading
+
+    from ecam.app.cli import build_parser
+    from ecam.app.drive_command import drive_command
+
+    channel = f"test-machine-bus-drive-{next(_channels)}"
+    args = build_parser().parse_args(["drive", "--interface", "virtual", "--channel", channel,
+                                      "--node-id", "5", "--node", "6"])
+    assert args.node_id == [[5], [6]]
+    network = canopen.Network()
+    network.NOTIFIER_CYCLE = 0.05
+    network.connect(interface="virtual", channel=channel, receive_own_messages=False)
+    booted = {n: threading.Event() for n in (5, 6)}
+    nodes = {}
+    for n, ready in booted.items():
+        nodes[n] = network.add_node(canopen.RemoteNode(n, str(EDS_PATH)))
+        nodes[n].sdo.RESPONSE_TIMEOUT = 2.0
+        nodes[n].nmt.add_heartbeat_callback(lambda state, ready=ready: ready.set()
+                                            if state == 0 else None)
+    stop, result = threading.Event(), []
+    worker = threading.Thread(target=lambda: result.append(drive_command(args, stop)))
+    worker.start()
+    try:
+        assert all(ready.wait(5.0) for ready in booted.values()), "no boot-up from both"
+        for n, node in nodes.items():
+            assert node.sdo[0x1000].raw == 0x00020192
+            node.sdo[0x1017].raw = 100 * n  # each its own object dictionary
+        assert [nodes[n].sdo[0x1017].raw for n in (5, 6)] == [500, 600]
+    finally:
+        stop.set()
+        worker.join(10.0)
+        network.disconnect()
+    assert result == [0]
+
+
+def _namespace_unavailable() -> str | None:
+    import shutil
+    import subprocess
+    for tool in ("unshare", "ip"):
+        if shutil.which(tool) is None:
+            return f"{tool} is not installed (util-linux / iproute2)"
+    probe = subprocess.run(["unshare", "-n", "sh", "-c", NETNS_SETUP], capture_output=True,
+                           text=True)
+    if probe.returncode != 0:
+        return f"no private network namespace here: {probe.stderr.strip() or probe.returncode}"
+    return None
+
+
+NETNS_SETUP = "ip link set lo up && ip route add 224.0.0.0/4 dev lo"
+
+
+@pytest.mark.slow
+def test_one_canopen_master_in_another_process_runs_two_nodes_of_one_drive_process():
+    """canopen's BaseNode402 for nodes 5 and 6 in one process, `ecam drive --interface
+    udp_multicast --node-id 5,6` in another, inside a private network namespace with loopback
+    only (tests/netns_machine_master.py): both boot, both are configured by SDO, enabled in
+    CSP and follow their own ramps, the drive process stops on SIGTERM with exit 0."""
+    import subprocess
+    reason = _namespace_unavailable()
+    if reason:
+        pytest.skip(reason)
+    script = Path(__file__).resolve().parent / "netns_machine_master.py"
+    run = subprocess.run(["unshare", "-n", "sh", "-c", f'{NETNS_SETUP} && exec "$0" "$1" 5 6',
+                          sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=120)
+    steps = [line for line in run.stdout.splitlines() if line.startswith("step:")]
+    assert run.returncode == 0 and run.stdout.strip().endswith("ok"), run.stdout + run.stderr
+    for stage in ("boot-up of nodes 5, 6", "node 5 streamed", "node 6 streamed",
+                  "both drives followed", "drive exit 0: virtual drives stopped"):
+        assert any(line.startswith(f"step: {stage}") for line in steps), (stage, steps)

@@ -17,7 +17,7 @@ from ecam.table import INTERPOLATIONS
 from hil_sim.effects import FIDELITIES
 
 from . import cam_commands, join_command
-from .drive_command import INTERFACES
+from .drive_command import INTERFACES, parse_node_ids
 from .fit_command import add_fit_command
 from .transition_command import add_transition_parser
 
@@ -118,8 +118,10 @@ def add_drive_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel", default=None,
                         help="CAN channel: a virtual channel name [ecam], a multicast group "
                              "[239.74.163.2] or a SocketCAN interface [vcan0]")
-    parser.add_argument("--node-id", type=int, default=None,
-                        help="CANopen node id 1..127 [1, or the scene's]")
+    parser.add_argument("--node-id", "--node", "--nodes", dest="node_id", action="append",
+                        type=parse_node_ids, default=None, metavar="N[,N...]",
+                        help="CANopen node id 1..127; several (repeated or comma-separated: "
+                             "5,6) serve one virtual drive per node [1, or the scene's]")
     parser.add_argument("--interface", default=INTERFACES[0], choices=INTERFACES,
                         help="udp_multicast (= ecam_udp, without echoes) or socketcan: masters "
                              "in other processes; virtual: masters in this process only "

@@ -1,5 +1,7 @@
 """`ecam drive` (and `hil-sim drive`): the virtual CiA 402 drive as a process of its own, for a
-master under test in another process.
+master under test in another process; one drive per node id given (``--node-id 5,6`` or
+``--node-id 5 --node-id 6``), each on a bus of its own on the same channel, so one external
+master runs a whole machine.
 
 It runs until Ctrl-C, SIGINT or SIGTERM (a service manager, `kill`), then shuts its bus down
 and exits 0. Exit status 2, one line on stderr, for bad input, a transport that cannot be
@@ -19,7 +21,7 @@ import threading
 import time
 
 from ecam import validate
-from ecam.errors import EcamError
+from ecam.errors import EcamError, InputError
 
 # The CAN stack and the drive are imported in the functions that run the drive: the command line
 # reads the table of transports below (its --interface choices) for every command it parses.
@@ -88,16 +90,52 @@ def open_drive_bus(interface: str, channel: str | None):
         raise EcamError(f"interface {interface!r} channel {channel!r} cannot be opened: {exc}") from None
 
 
+def node_ids(value) -> list:
+    """The node ids ``--node-id`` gave: None, an int, or a list of ints and lists (the option
+    repeated, each a comma-separated list), flattened in order."""
+    if value is None:
+        return []
+    if isinstance(value, (list, tuple)):
+        return [n for item in value for n in node_ids(item)]
+    return [value]
+
+
+def parse_node_ids(text: str) -> list:
+    """``--node-id`` as typed: one id or a comma-separated list (``5`` or ``5,6``); numbers are
+    checked where the ids are used (:func:`drive_command`), so the message names the field."""
+    out = []
+    for part in text.split(","):
+        try:
+            out.append(int(part.strip(), 0))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"node id {part.strip()!r} should be an integer "
+                                             "1..127 (or a comma-separated list of them)") from None
+    return out
+
+
+def check_node_ids(ids: list) -> list:
+    """Each node id 1..127 (CiA 301) and distinct: one virtual drive per node on one bus."""
+    seen = set()
+    for node in ids:
+        validate.integer("node_id", node, minimum=1, maximum=127)
+        if node in seen:
+            raise InputError(f"node_id: {node} should be distinct (given twice: one drive per "
+                            "node on one bus)")
+        seen.add(node)
+    return ids
+
+
 def drive_command(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
-    """Run a virtual drive until Ctrl-C, SIGINT or SIGTERM (or until ``stop`` is set).
+    """Run one virtual drive per node id until Ctrl-C, SIGINT or SIGTERM (or until ``stop`` is
+    set): one process can serve a whole machine to an external master.
 
     Parameters
     ----------
     args : argparse.Namespace
-        ``interface``, ``channel``, ``node_id``, ``heartbeat_ms``, ``scene`` (see
-        :func:`ecam.app.cli.add_drive_arguments`).
+        ``interface``, ``channel``, ``node_id`` (an int, or a list: :func:`node_ids`),
+        ``heartbeat_ms``, ``scene`` (see :func:`ecam.app.cli.add_drive_arguments`).
     stop : threading.Event, optional
-        Set by the caller to stop the drive (tests run it in a thread).
+        Set by the caller to stop the drives (tests run it in a thread).
 
     Returns
     -------
@@ -107,62 +145,79 @@ def drive_command(args: argparse.Namespace, stop: threading.Event | None = None)
     Raises
     ------
     EcamError
-        The transport cannot be opened, or its bus failed while the drive ran.
+        A bad or repeated node id (before any bus opens), a transport that cannot be opened,
+        or a bus that failed while the drives ran.
     """
     import can
 
     from hil_sim.drive import VirtualDrive
-    from hil_sim.rig import drive_for_scene
+    from hil_sim.rig import scene_drive_options
 
-    if args.node_id is not None:  # before the bus opens: a wrong id is bad input, not a bus error
-        validate.integer("node_id", args.node_id, minimum=1, maximum=127)
-    bus, channel = open_drive_bus(args.interface, args.channel)
+    # before any bus opens: a wrong id is bad input, not a bus error
+    ids = check_node_ids(node_ids(args.node_id))
+    options = {}
+    if args.scene is not None:
+        options, scene_node = scene_drive_options(args.scene)
+        ids = ids or [scene_node]
+    ids = ids or [1]
+    drives, buses = [], []  # each drive on a bus of its own: it hears the others' frames
+    channel = None
     try:
-        if args.scene is not None:
-            drive = drive_for_scene(args.scene, channel=channel, bus=bus, node_id=args.node_id,
-                                    heartbeat_ms=args.heartbeat_ms)
-        else:
-            drive = VirtualDrive(channel=channel, node_id=1 if args.node_id is None else args.node_id,
-                                 bus=bus, heartbeat_ms=args.heartbeat_ms)
+        for node in ids:
+            bus, channel = open_drive_bus(args.interface, args.channel)
+            if bus is not None:
+                buses.append(bus)
+            drives.append(VirtualDrive(channel=channel, node_id=node, bus=bus,
+                                       heartbeat_ms=args.heartbeat_ms, **options))
     except BaseException:
-        if bus is not None:
+        for drive in drives:
+            drive.close()
+        for bus in buses:
             bus.shutdown()
         raise
     stop = stop or threading.Event()
     signalled, restore = _stop_on_signals()
-    print(f"virtual CiA 402 drive, node {drive.node_id}, on {args.interface} channel "
+    what = (f"drive, node {ids[0]}" if len(ids) == 1
+            else f"drives, nodes {', '.join(str(n) for n in ids)}")
+    print(f"virtual CiA 402 {what}, on {args.interface} channel "
           f"{channel!r} ({_REACH[args.interface]}); Ctrl-C or SIGTERM stops it", flush=True)
-    deaf = False
+    deaf = None
     try:
-        drive.start()
+        for drive in drives:
+            drive.start()
         # Polled, not waited on: the signal handler takes no lock (see _stop_on_signals), and
         # Event.is_set() takes none either.
         while not (stop.is_set() or signalled):
-            if drive.failure is not None:
+            if any(drive.failure is not None for drive in drives):
                 break
-            if not drive.runner.alive:
-                deaf = True
+            deaf = next((drive for drive in drives if not drive.runner.alive), None)
+            if deaf is not None:
                 break
             time.sleep(_POLL_S)
     except KeyboardInterrupt:
         pass  # SIGINT before its handler was set, or where none could be set
-    except (can.CanError, OSError) as exc:  # the boot-up could not be sent
+    except (can.CanError, OSError) as exc:  # a boot-up could not be sent
         raise EcamError(f"interface {args.interface!r} channel {channel!r} failed: {exc}") from None
     finally:
-        drive.stop()
-        if bus is not None:
+        for drive in drives:
+            drive.stop()
+        for bus in buses:
             bus.shutdown()
         restore()
-    if drive.failure is not None:
-        raise EcamError(f"interface {args.interface!r} channel {channel!r} failed while the drive "
-                        f"ran: {drive.failure}")
-    if deaf:
-        raise EcamError(f"the drive's serving thread on interface {args.interface!r} channel "
+    failed = next((drive for drive in drives if drive.failure is not None), None)
+    node = f" (node {failed.node_id})" if failed is not None and len(drives) > 1 else ""
+    if failed is not None:
+        raise EcamError(f"interface {args.interface!r} channel {channel!r} failed while the drive"
+                        f"{node} ran: {failed.failure}")
+    if deaf is not None:
+        node = f" (node {deaf.node_id})" if len(drives) > 1 else ""
+        raise EcamError(f"the drive's serving thread{node} on interface {args.interface!r} channel "
                         f"{channel!r} stopped: the drive answered nothing more (see the log)")
-    dropped = drive.runner.dropped + getattr(bus, "dropped", 0)
+    dropped = (sum(drive.runner.dropped for drive in drives)
+               + sum(getattr(bus, "dropped", 0) for bus in buses))
     if dropped:  # counted where they entered (the drive's runner, the echo-free UDP bus)
         print(f"dropped {dropped} received frames that were no CAN frames", flush=True)
-    print("virtual drive stopped", flush=True)
+    print("virtual drive stopped" if len(drives) == 1 else "virtual drives stopped", flush=True)
     return 0
 
 

@@ -30,7 +30,7 @@ highest one that passes.
 """
 
 from hil_sim.rig.network import LockstepMaster
-from hil_sim.rig.run import drive_for_scene, run_scene
+from hil_sim.rig.run import drive_for_scene, run_scene, scene_drive_options
 from hil_sim.rig.search import find_max_speed
 
-__all__ = ["LockstepMaster", "drive_for_scene", "find_max_speed", "run_scene"]
+__all__ = ["LockstepMaster", "drive_for_scene", "find_max_speed", "run_scene", "scene_drive_options"]

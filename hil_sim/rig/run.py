@@ -359,13 +359,21 @@ def drive_for_scene(scene, *, channel: str = "ecam", bus=None, node_id: int | No
     heartbeat_ms : int, optional
         Producer heartbeat time at boot (default: the EDS value).
     """
+    options, scene_node_id = scene_drive_options(scene)
+    return VirtualDrive(channel=channel, bus=bus, node_id=node_id or scene_node_id,
+                        heartbeat_ms=heartbeat_ms, **options)
+
+
+def scene_drive_options(scene) -> tuple[dict, int]:
+    """The :class:`VirtualDrive` keyword arguments of a scene (mechanics, gains, effects, the
+    cam's position for master 0), worked out once for any number of drives
+    (``ecam drive --scene S --node-id 5,6``), and the scene's node id."""
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     run, _ = prepare(scene)
     setup = axis_setup(run, select_effects(run).included)
-    return VirtualDrive(channel=channel, bus=bus, node_id=node_id or scene.drive.node_id,
-                        initial_counts=int(run.cam.table.lookup(0)),
-                        heartbeat_ms=heartbeat_ms, **drive_options(setup))
+    return (dict(initial_counts=int(run.cam.table.lookup(0)), **drive_options(setup)),
+            scene.drive.node_id)
 
 
 def _counts_per_motor_rad(scene: Scene, cam: CompiledCam, mechanics: Mechanics) -> float:

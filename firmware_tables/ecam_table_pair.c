@@ -8,6 +8,11 @@
 #define ECAM_MEMORY_BARRIER() ((void)0)
 #endif
 
+/* ecam_switch_pair.state: one byte tested on the hot path, 0 while the window is valid. */
+#define ECAM_SWITCH_TRACKING 0u
+#define ECAM_SWITCH_FIRST 1u
+#define ECAM_SWITCH_ENDED 2u
+
 /* Two's-complement reinterpretations written out, because C99 leaves the conversion of an
  * out-of-range unsigned value to a signed type implementation-defined; compilers reduce each to
  * nothing. */
@@ -38,10 +43,20 @@ static uint64_t ecam_switch_window(const ecam_table *t, uint64_t local)
     return local - (uint64_t)r;
 }
 
-/* 1 when `local` lies outside the master range of a table that does not repeat. */
-static uint8_t ecam_switch_outside(const ecam_table *t, uint64_t local, uint64_t window)
+/* ECAM_SWITCH_ENDED when `local` lies outside the master range of a table that does not
+ * repeat, else ECAM_SWITCH_TRACKING. */
+static uint8_t ecam_switch_state(const ecam_table *t, uint64_t local, uint64_t window)
 {
-    return (t->periodic == 0u && (local - window) >= (uint64_t)t->master_counts) ? 1u : 0u;
+    return (t->periodic == 0u && (local - window) >= (uint64_t)t->master_counts) ? ECAM_SWITCH_ENDED
+                                                                                : ECAM_SWITCH_TRACKING;
+}
+
+/* Make `t` the running table: what the hot path reads of it, cached in the pair. */
+static void ecam_switch_run(ecam_switch_pair *pair, const ecam_table *t)
+{
+    pair->running = t;
+    pair->span = (uint64_t)t->master_counts;
+    pair->repeat = t->periodic == 1u ? 1u : 0u;
 }
 
 void ecam_switch_init(ecam_switch_pair *pair)
@@ -58,8 +73,9 @@ void ecam_switch_init(ecam_switch_pair *pair)
         pair->boundary = 0u;
         pair->pending_slave = 0u;
         pair->offset = 0u;
-        pair->started = 0u;
-        pair->ended = 0u;
+        pair->span = 0u;
+        pair->state = ECAM_SWITCH_FIRST;
+        pair->repeat = 0u;
     }
 }
 
@@ -76,7 +92,7 @@ int ecam_switch_engage(ecam_switch_pair *pair, const ecam_table *table, int64_t 
     /* CODESYS: X = MasterPosition + MasterOffset, so the table's 0 sits at -MasterOffset */
     pair->origin = 0u - (uint64_t)master_offset;
     pair->offset = (uint32_t)slave_offset;
-    pair->running = table;
+    ecam_switch_run(pair, table);
     return ECAM_SWITCH_OK;
 }
 
@@ -149,11 +165,11 @@ static uint64_t ecam_switch_take_over(ecam_switch_pair *pair, uint64_t boundary,
     /* X = master - zero + MasterOffset, Y = CAM(X) + SlaveOffset + base (ecam_table_pair.h) */
     pair->origin = ((mode & ECAM_SWITCH_MASTER_RELATIVE) != 0u ? where : 0u) - pair->pending_master;
     pair->offset = ((mode & ECAM_SWITCH_SLAVE_RELATIVE) != 0u ? at : 0u) + pair->pending_slave;
-    pair->running = next;
+    ecam_switch_run(pair, next);
     pair->boundary = where;
     local = (uint64_t)master - pair->origin;
     pair->window = ecam_switch_window(next, local);
-    pair->ended = ecam_switch_outside(next, local, pair->window);
+    pair->state = ecam_switch_state(next, local, pair->window);
     pair->armed = 0u;
     ECAM_MEMORY_BARRIER();
     pair->switches = pair->switches + 1u;
@@ -166,21 +182,20 @@ static uint64_t ecam_switch_cross(ecam_switch_pair *pair, int64_t master, uint64
 {
     const ecam_table *t = pair->running;
     uint64_t boundary;
-    if (pair->started == 0u) {
+    if (pair->state == ECAM_SWITCH_FIRST) {
         /* no previous sample, so no boundary crossed: place the window */
-        pair->started = 1u;
         pair->window = ecam_switch_window(t, local);
-        pair->ended = ecam_switch_outside(t, local, pair->window);
+        pair->state = ecam_switch_state(t, local, pair->window);
         return local;
     }
-    if (pair->ended != 0u) {
+    if (pair->state == ECAM_SWITCH_ENDED) {
         /* the profile ended at an earlier sample: a pending table takes over here, at the
          * current master position */
         if (pair->armed != 0u) {
             *rc = ECAM_SWITCH_DONE;
             return ecam_switch_take_over(pair, local, master);
         }
-        pair->ended = ecam_switch_outside(t, local, pair->window);
+        pair->state = ecam_switch_state(t, local, pair->window);
         return local;
     }
     /* left the period [window, window + M): forwards past its end or backwards below its start
@@ -192,31 +207,36 @@ static uint64_t ecam_switch_cross(ecam_switch_pair *pair, int64_t master, uint64
         return ecam_switch_take_over(pair, boundary, master);
     }
     pair->window = ecam_switch_window(t, local);
-    pair->ended = ecam_switch_outside(t, local, pair->window);
+    pair->state = ecam_switch_state(t, local, pair->window);
     return local;
 }
 
 int ecam_switch_step(ecam_switch_pair *pair, int64_t master, int32_t *position, int32_t *slope)
 {
-    int32_t p = ECAM_INVALID, s = ECAM_INVALID;
+    const ecam_table *t;
+    uint64_t local;
     int rc = ECAM_SWITCH_OK;
     if (pair == NULL || pair->running == NULL) {
-        rc = pair == NULL ? ECAM_SWITCH_E_NULL : ECAM_SWITCH_E_NOT_ENGAGED;
-    } else {
-        uint64_t local = (uint64_t)master - pair->origin;
-        /* hot path: one compare while the master stays in the last sample's period */
-        if (pair->ended != 0u || pair->started == 0u ||
-            (local - pair->window) >= (uint64_t)pair->running->master_counts) {
-            local = ecam_switch_cross(pair, master, local, &rc);
+        if (position != NULL) {
+            *position = ECAM_INVALID;
         }
-        ecam_table_lookup(pair->running, ecam_switch_s64(local), &p, &s);
-        p = ecam_switch_s32((uint32_t)p + pair->offset);
+        if (slope != NULL) {
+            *slope = ECAM_INVALID;
+        }
+        return pair == NULL ? ECAM_SWITCH_E_NULL : ECAM_SWITCH_E_NOT_ENGAGED;
     }
+    local = (uint64_t)master - pair->origin;
+    /* hot path: one compare while the master stays in the last sample's period */
+    if (pair->state != ECAM_SWITCH_TRACKING || (local - pair->window) >= pair->span) {
+        local = ecam_switch_cross(pair, master, local, &rc);
+    }
+    t = pair->running;
+    /* A periodic table without a net stroke repeats exactly, so it is looked up inside the
+     * period the pair already knows: the same bits (FORMAT.md step 1), without the table's wrap
+     * of a master outside [0, M). A net stroke counts whole periods: it keeps the master. */
+    ecam_table_lookup(t, ecam_switch_s64(pair->repeat != 0u ? local - pair->window : local), position, slope);
     if (position != NULL) {
-        *position = p;
-    }
-    if (slope != NULL) {
-        *slope = s;
+        *position = ecam_switch_s32((uint32_t)*position + pair->offset);
     }
     return rc;
 }

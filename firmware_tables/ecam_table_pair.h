@@ -131,8 +131,10 @@ typedef struct ecam_switch_pair {
     uint64_t boundary;    /* master position of the last switch (mod 2^64) */
     uint32_t pending_slave;   /* the pending switch's SlaveOffset, as uint32 bits */
     uint32_t offset;      /* added to the running table's position (mod 2^32) */
-    uint8_t started;      /* a sample has placed the window */
-    uint8_t ended;        /* a running table that does not repeat: the last sample was outside it */
+    uint64_t span;        /* the running table's master_counts (no pointer chase per sample) */
+    uint8_t state;        /* 0 tracking the window; 1 no sample yet (ECAM_SWITCH_FIRST); 2 a
+                             running table that does not repeat was left (ECAM_SWITCH_ENDED) */
+    uint8_t repeat;       /* 1: the running table repeats exactly (periodic, no net stroke) */
 } ecam_switch_pair;
 
 /* Not engaged, nothing pending (the all-zero state). */

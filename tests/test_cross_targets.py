@@ -184,6 +184,45 @@ def test_table_switch_bit_for_bit_on_target(work, name):
     assert sum(row[0] == 1 for row in got) > 50  # the script switches, many times
 
 
+# ecam_switch_step's own instructions per sample on x86-64 (gcc 12 -O2): 39 over the table's
+# ecam_table_lookup for a master inside the period (a call, the window compare, the offset add);
+# a net-free periodic table is then looked up inside its period, so over many periods (20000
+# masters 7 counts apart) the pair costs 216 against the table's 199.8 (quintic), 100 against
+# 83.8 (linear), the knife's net stroke 254.5 against 216.5.
+SWITCH_OVERHEAD_LIMIT = 45
+
+
+def test_switch_step_instructions_x86_64(tmp_path, capsys):
+    """What the pair adds per sample to the lookup (callgrind, inclusive, per call): masters
+    0, 7, 14, ... (many periods) and a master standing at 0 (inside the period)."""
+    import subprocess
+
+    import test_table_pair as pairs
+
+    why = instructions.host_note()
+    if why:
+        pytest.skip(why)
+    exe = tmp_path / "switch_check"
+    build = subprocess.run([instructions.host_compiler(), "-std=c99", "-O2", "-I", str(FIRMWARE), "-o", str(exe),
+                            *(str(FIRMWARE / s) for s in pairs.DRIVER_SOURCES)], capture_output=True, text=True)  # fmt: skip
+    assert build.returncode == 0, build.stderr
+    calls = 20_000
+    with capsys.disabled():
+        print()
+        for stem in ("combination_drrd_quintic", "combination_drrd_linear", "rotary_knife_quintic"):
+            (tmp_path / "t.bin").write_bytes((FIRMWARE / "vectors" / f"{stem}.bin").read_bytes())
+            for stride in (7, 0):
+                args = ["count", "t.bin", "{}", str(calls), str(stride)]
+                table, sum_t = instructions._callgrind(exe, [a.format("table") for a in args], "ecam_table_lookup",
+                                                       tmp_path)  # fmt: skip
+                pair, sum_p = instructions._callgrind(exe, [a.format("pair") for a in args], "ecam_switch_step",
+                                                      tmp_path)  # fmt: skip
+                assert sum_t == sum_p  # the same outputs
+                print(f"x86-64 {stem} stride {stride}: ecam_table_lookup {table / calls:.1f}, "
+                      f"ecam_switch_step {pair / calls:.1f} instructions per sample")
+                assert pair / calls <= table / calls + SWITCH_OVERHEAD_LIMIT
+
+
 # --------------------------------------------------------------------------------------------
 # Instruction budgets (issue 11): exact counts, deterministic for one compiler
 # --------------------------------------------------------------------------------------------

@@ -14,6 +14,12 @@
  *   4 step    MASTER         ecam_switch_step
  * OUT: per command six int64 LE words: result, position, slope (ECAM_INVALID unless a step),
  * ecam_switch_boundary, ecam_switch_count, ecam_switch_pending.
+ *
+ *   switch_check count BLOB table|pair N STRIDE
+ *
+ * N samples at masters 0, STRIDE, 2 STRIDE, ... through ecam_table_lookup (table) or an engaged
+ * pair's ecam_switch_step (pair), for an instruction counter (callgrind --toggle-collect=
+ * ecam_table_lookup / ecam_switch_step); prints a checksum of the outputs.
  * Exit status 0, 2 on a usage, I/O or memory error. A test tool: it allocates, the runtime does
  * not.
  */
@@ -45,6 +51,36 @@ static void put_i64(uint8_t *p, int64_t v)
     }
 }
 
+static int count_samples(char **argv)
+{
+    static ecam_table table;
+    static ecam_switch_pair pair;
+    size_t len;
+    uint8_t *blob = ecam_host_read_file(argv[2], &len);
+    const long n = atol(argv[4]), stride = atol(argv[5]);
+    const int use_pair = argv[3][0] == 'p';
+    int64_t sum = 0;
+    long k;
+    if (blob == NULL || ecam_table_init(&table, blob, len) != ECAM_OK ||
+        ecam_switch_engage(&pair, &table, 0, 0) != ECAM_SWITCH_OK) {
+        fprintf(stderr, "switch_check: cannot load %s\n", argv[2]);
+        return 2;
+    }
+    for (k = 0; k < n; k++) {
+        int32_t position, slope;
+        const int64_t master = (int64_t)k * (int64_t)stride;
+        if (use_pair) {
+            (void)ecam_switch_step(&pair, master, &position, &slope);
+        } else {
+            ecam_table_lookup(&table, master, &position, &slope);
+        }
+        sum += (int64_t)position + slope;
+    }
+    printf("%lld\n", (long long)sum);
+    free(blob);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     static ecam_table tables[MAX_TABLES];
@@ -55,6 +91,9 @@ int main(int argc, char **argv)
     int n, i;
     FILE *f;
 
+    if (argc == 6 && argv[1][0] == 'c' && argv[1][1] == 'o') {
+        return count_samples(argv);
+    }
     if (argc < 3 || argc - 3 > MAX_TABLES) {
         fprintf(stderr, "usage: switch_check SCRIPT OUT BLOB... (at most %d)\n", MAX_TABLES);
         return 2;

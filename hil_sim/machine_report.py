@@ -131,7 +131,7 @@ class MachineReport:
 
 def sizing_text(sizing: dict, cycle_s: float, bitrate: int) -> str:
     """The bus sizing in words (:func:`hil_sim.bus_sizing.size_bus`)."""
-    more = ", ".join(f"{n} more like {name}" for name, n in sizing["more_axes"].items())
+    more = ", ".join(f"{n} more like {name}" for name, n in sizing["more_axes"].items() if n)
     standard = sizing["min_standard_bitrate"]
     return (f"bus sizing (worst-case bit stuffing): {sizing['bits_per_cycle']} bits of cyclic "
             f"frames per {1e3 * cycle_s:g} ms SYNC period, {sizing['load_percent']:.3g} % of "

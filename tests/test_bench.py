@@ -130,6 +130,22 @@ def test_targets_and_rig_rows_are_reported(quick_run):
     assert "targets (shown, not asserted)" in text and "cycloidal" in text
 
 
+def test_quick_run_reports_the_machine_on_both_paths(quick_run):
+    """The shipped machine: a row per path, and its one loop against its axes run alone."""
+    rows = quick_run[0]
+    machine = {r["path"]: r for r in rows if r["kind"] == "machine"}
+    assert set(machine) == {"fast", "canopen"}
+    for r in machine.values():
+        assert r["axes"] == 6 and r["passed"] and r["real_time_factor"] > 0
+        assert set(r["axis_s"]) == {"knife", "pusher", "lifter", "transfer", "feed", "turret"}
+    scaling = {r["path"]: r for r in rows if r["kind"] == "machine_scaling"}
+    assert set(scaling) == {"fast", "canopen"}
+    for r in scaling.values():
+        assert r["alone_sum_s"] == pytest.approx(sum(r["alone_s"].values()))
+        assert r["ratio"] == pytest.approx(r["loop_s"] / r["alone_sum_s"])
+    assert "one loop of 6 axes" in bench.format_text(rows)
+
+
 def test_quick_run_reports_exact_instruction_counts(quick_run):
     """Instructions per lookup (runtime, minimal, ratio) on x86-64 and Cortex-M4 where the tools
     exist, else a note naming the missing tool; the counts are exact, so the verdict is asserted."""

@@ -14,6 +14,8 @@ from ecam.cam_fields import CAM_FIELDS, CAM_TABLES
 from ecam.camfile import parse_cam
 from ecam.errors import EcamError
 from ecam.field_table import check_probe_values
+from hil_sim.machine import parse_machine
+from hil_sim.machine_fields import MACHINE_FIELDS, MACHINE_TABLES
 from hil_sim.scene import parse_scene
 from hil_sim.scene_fields import SCENE_FIELDS, SCENE_TABLES
 
@@ -37,6 +39,16 @@ BASE_CAM = {
     "segment": [{"law": "cycloidal", "span": 180.0, "stroke": 0.01},
                 {"law": "cycloidal", "span": 180.0, "stroke": -0.01}],
     "tappet": [{"on": 10.0, "off": 20.0}],
+}
+# A machine of one axis: its master, bus and duration the machine's, the rest the axis's.
+BASE_MACHINE = {
+    "master": {"speed": 360.0},
+    "bus": {"faults": {}},
+    "limits": {"bus_load_percent": 80.0},
+    "duration": {"master_periods": 1.0},
+    "axis": [{"name": "a", "node_id": 1, "cam": {"file": "combination_drrd.toml"},
+              "mechanics": {"motor_inertia": 1e-4, "load_inertia": 1e-3},
+              "limits": {"tracking_error": 0.01}}],
 }
 # Settings a choice needs before it parses (the other choices' own fields).
 CHOICE_CONTEXT = {
@@ -62,9 +74,14 @@ def _cam(data):
     return parse_cam(data, source="probe.toml")
 
 
+def _machine(data):
+    return parse_machine(data, source="probe.toml")
+
+
 FORMATS = {
     "scene": (SCENE_FIELDS, SCENE_TABLES, BASE_SCENE, _scene),
     "cam": (CAM_FIELDS, CAM_TABLES, BASE_CAM, _cam),
+    "machine": (MACHINE_FIELDS, MACHINE_TABLES, BASE_MACHINE, _machine),
 }
 
 
@@ -72,7 +89,7 @@ def _table(data, dotted: str, create: bool = True) -> dict:
     """The mapping of a dotted table in ``data`` (``segment``: the first segment)."""
     node = data
     for part in filter(None, dotted.split(".")):
-        if part in ("segment", "tappet", "event") and isinstance(node.get(part), list):
+        if part in ("segment", "tappet", "event", "axis") and isinstance(node.get(part), list):
             node = node[part][0]
         else:
             node = node.setdefault(part, {}) if create else node[part]
@@ -120,8 +137,10 @@ def test_every_accepted_key_has_a_row_and_every_row_is_accepted(kind):
         for key in accepted:
             if rows[(table, key)].kind.endswith("table") and table == "":
                 # [sweep] is read by hil_sim.sweep_spec (ecam sweep), not by the scene's parser,
-                # and its fields are documented in docs/sweep.md
-                assert key in tables or key in ("segment", "sweep"), f"[{key}] has no section"
+                # and its fields are documented in docs/sweep.md; a machine's [master], [bus]
+                # and [duration] are a scene's (their rows are SCENE_FIELDS')
+                assert key in tables or key in ("segment", "sweep") or (
+                    kind == "machine" and key in SCENE_TABLES), f"[{key}] has no section"
 
 
 def _probe_cases():

@@ -6,20 +6,25 @@ higher COB-IDs late first; a scene file is a machine of one."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
+from dataclasses import replace
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ecam.errors import CamFileError, InputError
+from ecam.app.junit import junit_xml
 from hil_sim.bus import frame_bits
 from hil_sim.bus_sizing import size_bus
 from hil_sim.machine import load_machine, parse_machine
 from hil_sim.rig import run_scene
+from hil_sim.rig.cam import compile_cam
 from hil_sim.rig.machine_run import run_machine
-from hil_sim.scene import load_scene
+from hil_sim.scene import DurationSpec, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 CAM = str(ROOT / "firmware_tables" / "cams" / "modified_sine.toml")
@@ -143,9 +148,13 @@ def test_bus_free_machine_equals_its_axes_alone(pair_file):
     assert report.check("bus_load").value is None  # no bus bus-free
 
 
-def test_on_the_bus_each_axis_is_bit_identical_to_bus_free(pair_file):
-    fast = run_machine(pair_file, path="fast")
-    bus = run_machine(pair_file, path="canopen")
+@pytest.fixture(scope="module")
+def pair_reports(pair_file):
+    return run_machine(pair_file, path="fast"), run_machine(pair_file, path="canopen")
+
+
+def test_on_the_bus_each_axis_is_bit_identical_to_bus_free(pair_reports):
+    fast, bus = pair_reports
     assert bus.passed and bus.check("bus_load").passed
     for a, b in zip(fast.axes, bus.axes):
         for name in ("tracking_error", "coupling_torque", "following_error"):
@@ -191,19 +200,6 @@ def test_sizing_reproduces_the_issues_figures():
     assert sizing["min_standard_bitrate"] == 500_000  # 285 bits / 0.8 ms = 356 kbit/s
 
 
-def test_cli_runs_a_machine(pair_file):
-    out = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(pair_file), "--json"],
-                         capture_output=True, text=True, cwd=ROOT)
-    assert out.returncode == 0, out.stderr
-    data = json.loads(out.stdout)
-    assert data["machine"] == "pair" and [a["scene"] for a in data["axes"]] == ["screw", "lifter"]
-    assert data["passed"] and {c["name"] for c in data["checks"]} == {"bus_load", "faults"}
-    text = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(pair_file)],
-                          capture_output=True, text=True, cwd=ROOT)
-    assert text.returncode == 0 and text.stdout.startswith("machine pair: PASSED")
-    assert "bus sizing" in text.stdout
-
-
 def test_machine_durations_must_agree(tmp_path):
     """duration.master_periods with a master speed in master units/s and cams of different
     master periods gives the axes different cycle counts: refused, naming both (speed_rpm is
@@ -222,52 +218,159 @@ def test_machine_durations_must_agree(tmp_path):
 MACHINES = ROOT / "hil_sim" / "machines"
 
 
-@pytest.fixture(scope="module")
-def line_reports():
+def short(path, cycles=40):
+    """A machine file run for a few cycles with every effect on (no measurement of the effects):
+    enough for its frames and its bus, cheap enough for the quick suite."""
+    machine = load_machine(path).with_fidelity("full")
+    return replace(machine, axes=tuple(replace(a, duration=DurationSpec(cycles=cycles))
+                                       for a in machine.axes))
+
+
+def test_the_shipped_line_has_the_issues_stations():
+    """Six stations mixing controller- and drive-side cams: a feed roll whose net stroke is a
+    fraction of a count (200 mm of film at 10000 counts per revolution of an 80 mm roll:
+    200 x 10000 / (80 pi) = 7957.747 counts), the knife (360000 counts per cut), an
+    eight-station turret (360 / 8 = 45 deg = 45000 counts per index) and the
+    dwell-rise-return-dwell pusher."""
+    machine = load_machine(MACHINES / "packaging_line.toml")
+    modes = {a.name: a.cam_mode for a in machine.axes}
+    assert modes == {"knife": "controller", "pusher": "controller", "lifter": "drive",
+                     "transfer": "drive", "feed": "drive", "turret": "drive"}
+    axes = {a.name: a for a in machine.axes}
+    feed = compile_cam(axes["feed"]).table.net_stroke
+    assert feed.denominator > 1  # a fraction of a count, stored exactly as a fraction
+    assert float(feed) == pytest.approx(200.0 * 10000 / (80.0 * math.pi), abs=1e-6)
+    assert compile_cam(axes["turret"]).table.net_stroke == Fraction(360 // 8 * 1000)
+    assert compile_cam(axes["knife"]).table.net_stroke == Fraction(360 * 1000)
+    pusher = compile_cam(axes["pusher"]).profile
+    laws = [segment.law.name for segment in pusher.segments]
+    assert pusher.net_stroke is None and laws[0] == laws[-1] == "dwell"  # dwell-rise-return-dwell
+    assert pusher.slave_range == pytest.approx((0.0, 1.75))
+    assert {a.drive.cycle_s for a in machine.axes} == {0.004}
+
+
+def test_the_shipped_line_is_sized_from_its_frames():
+    """Controller-side: RPDO 8 bytes + TPDOs 7 and 6 bytes = 135 + 125 + 115 = 375 bits;
+    drive-side: RPDO 4 bytes = 95, + 240 = 335; two controller-side, four drive-side and the
+    SYNC (55): 2145 bits per SYNC period; at 80 % of 1 Mbit/s at least 2145 / 800000 s =
+    2.68 ms: 4 ms fits (3200 bits), with 1055 bits left: 2 more controller-side axes (750),
+    3 more drive-side ones (1005)."""
+    report = run_machine(short(MACHINES / "packaging_line.toml"), path="canopen")
+    sizing = report.summary["bus"]["sizing"]
+    assert sizing["axis_bits"] == {"knife": 375, "pusher": 375, "lifter": 335, "transfer": 335,
+                                   "feed": 335, "turret": 335}
+    assert sizing["bits_per_cycle"] == 2145 and sizing["fits"]
+    assert sizing["min_cycle_s"] == pytest.approx(2145 / 800_000, rel=1e-12)
+    assert sizing["more_axes"] == {"knife": 2, "pusher": 2, "lifter": 3, "transfer": 3,
+                                   "feed": 3, "turret": 3}
+    assert report.check("bus_load").passed and all(
+        not v["late_set_points"] for v in report.summary["bus"]["late"].values())
+
+
+def test_the_line_at_1_ms_does_not_fit_and_says_so():
+    report = run_machine(short(MACHINES / "packaging_line_1ms.toml"), path="canopen")
+    assert not report.passed and not report.check("bus_load").passed
+    late = report.summary["bus"]["late"]
+    assert set(late) == {a.scene for a in report.axes}
+    assert all(late[name]["late_set_points"] > 0 for name in late)
+    sizing = report.summary["bus"]["sizing"]
+    assert not sizing["fits"] and sizing["min_cycle_s"] == pytest.approx(2145 / 800_000)
+    text = report.to_text()
+    assert "DOES NOT FIT" in text and "at least 2.68 ms" in text and "no more axes" in text
+
+
+@pytest.mark.slow
+def test_the_shipped_line_passes_on_both_paths_alike():
     path = MACHINES / "packaging_line.toml"
-    return run_machine(path, path="fast"), run_machine(path, path="canopen")
-
-
-def test_the_shipped_line_passes_on_both_paths_alike(line_reports):
-    fast, bus = line_reports
-    assert fast.passed and bus.passed
-    assert [a.scene for a in bus.axes] == ["knife", "pusher", "lifter", "transfer"]
-    assert [a.summary["cam_mode"] for a in bus.axes] == ["controller", "controller", "drive",
-                                                         "drive"]
+    fast, bus = run_machine(path, path="fast"), run_machine(path, path="canopen")
+    assert fast.passed and bus.passed, bus.to_text()
+    assert [a.scene for a in bus.axes] == ["knife", "pusher", "lifter", "transfer", "feed",
+                                           "turret"]
     for a, b in zip(fast.axes, bus.axes):
         assert np.array_equal(a.series["tracking_error"], b.series["tracking_error"])
 
 
-def test_the_shipped_line_is_sized_from_its_frames(line_reports):
-    """Controller-side: RPDO 8 bytes + TPDOs 7 and 6 bytes = 135 + 125 + 115 = 375 bits;
-    drive-side: RPDO 4 bytes = 95, + 240 = 335; two of each and the SYNC (55): 1475 bits per
-    SYNC period; at 90 % of 1 Mbit/s at least 1475 / 900000 s = 1.639 ms: 2 ms fits."""
-    sizing = line_reports[1].summary["bus"]["sizing"]
-    assert sizing["axis_bits"] == {"knife": 375, "pusher": 375, "lifter": 335, "transfer": 335}
-    assert sizing["bits_per_cycle"] == 1475 and sizing["fits"]
-    assert sizing["min_cycle_s"] == pytest.approx(1475 / 900_000, rel=1e-12)
-    assert sizing["more_axes"] == {"knife": 0, "pusher": 0, "lifter": 0, "transfer": 0}
-
-
-def test_the_line_at_1_ms_does_not_fit_and_says_so():
-    report = run_machine(MACHINES / "packaging_line_1ms.toml", path="canopen")
-    assert not report.passed and not report.check("bus_load").passed
-    late = report.summary["bus"]["late"]
-    assert all(late[name]["late_set_points"] > 0 for name in late)
-    assert not report.summary["bus"]["sizing"]["fits"]
-    assert "DOES NOT FIT" in report.to_text()
-
-
-def test_junit_has_a_testcase_per_machine_and_axis_check(pair_file, tmp_path):
+def test_junit_has_a_testcase_per_machine_and_axis_check(pair_reports):
     import xml.etree.ElementTree as ET
-    junit = tmp_path / "machine.xml"
-    out = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(pair_file), "--junit",
-                          str(junit)], capture_output=True, text=True, cwd=ROOT)
-    assert out.returncode == 0, out.stderr
-    names = [case.get("name") for case in ET.parse(junit).getroot().iter("testcase")]
+    bus = pair_reports[1]
+    cases = list(ET.fromstring(junit_xml([("pair.toml", bus, 1.0)])).iter("testcase"))
+    names = [case.get("name") for case in cases]
     assert names[:2] == ["bus_load", "faults"]
     assert "screw.tracking_error" in names and "lifter.loop_stability" in names
-    assert len(names) == 2 + sum(len(a.checks) for a in run_machine(pair_file, path="fast").axes)
+    assert len(names) == 2 + sum(len(a.checks) for a in bus.axes)
+
+
+def test_the_machine_plot_draws_what_each_tracking_check_reads(pair_reports, tmp_path):
+    """The machine's figure draws each axis's tracking error where its check looks, as a share
+    of its limit: the highest point drawn is the check's value over its limit."""
+    from hil_sim.rig.machine_plot import checked_tracking, machine_figure_bytes, plot_machine
+    bus = pair_reports[1]
+    for axis in bus.axes:
+        x, share = checked_tracking(axis, 360.0)
+        check = axis.check("tracking_error")
+        assert np.nanmax(share) == pytest.approx(100.0 * check.value / check.limit, rel=1e-12)
+        assert np.nanmin(x) >= 0.0 and np.nanmax(x) < 360.0
+    written = plot_machine(bus, tmp_path / "pair.png")
+    assert [p.name for p in written] == ["pair.png", "pair_screw.png", "pair_lifter.png"]
+    assert all(p.read_bytes().startswith(b"\x89PNG") for p in written)
+    assert machine_figure_bytes(bus) == machine_figure_bytes(bus)  # the same bytes every run
+
+
+def test_the_machine_page_has_the_machine_first_then_each_axis(pair_reports, pair_file):
+    import copy
+    from dataclasses import replace as change
+    from ecam.app.machine_html import sim_page
+    bus = pair_reports[1]
+    page = sim_page([(pair_file, bus, 1.0)])
+    assert "<h1>PASSED: machine pair, 2 of 2 axes passed</h1>" in page
+    machine, screw, lifter = (page.index(f'id="{anchor}"') for anchor in
+                              ("machine", "scene-screw", "scene-lifter"))
+    assert machine < screw < lifter
+    assert "bus sizing (worst-case bit stuffing)" in page[machine:screw]
+    assert page.count('<img class="plot"') >= 3  # the machine's, and each axis's
+    # the bus fails, every axis passes: the page says FAILED, and why
+    failing = copy.copy(bus)
+    failing.machine_checks = [change(c, passed=False) if c.name == "bus_load" else c
+                              for c in bus.machine_checks]
+    failing.axes = [change(a, series={}, summary={k: v for k, v in a.summary.items()
+                                                  if k != "tuning"}) for a in bus.axes]
+    page = sim_page([(pair_file, failing, 1.0)])
+    assert "<h1>FAILED: machine pair, 2 of 2 axes passed; the machine&#x27;s own checks failed" \
+        in page and "the machine's own checks failed (below)" in page
+
+
+def test_a_directory_run_takes_machine_files(pair_file, tmp_path):
+    from ecam.app.multi import run_scenes, summary_table
+    directory = tmp_path / "line"
+    directory.mkdir()
+    (directory / "pair.toml").write_text(machine_text(PAIR, periods=0.25))
+    (directory / "cam.toml").write_text(Path(CAM).read_text())  # a cam file: not a scene
+    results = run_scenes([directory], fidelity="full")
+    assert len(results) == 1
+    _, report, _ = results[0]
+    assert report.machine == "pair" and [a.scene for a in report.axes] == ["screw", "lifter"]
+    assert "pair  " in summary_table(results) and "1 of 1 scenes passed" in summary_table(results)
+
+
+pytest_plugins = ["pytester"]
+
+
+def test_the_pytest_plugin_has_a_test_per_axis(pytester):
+    machines = pytester.path / "machines"
+    machines.mkdir()
+    text = machine_text(PAIR, periods=0.25)
+    head, lifter = text.rsplit("[[axis]]", 1)
+    (machines / "pair.toml").write_text(head + "[[axis]]" + lifter.replace(
+        "tracking_error = 0.05", "tracking_error = 1e-9"))  # the lifter cannot pass
+    from importlib.metadata import entry_points
+    installed = any(e.value == "ecam.app.pytest_plugin" for e in entry_points(group="pytest11"))
+    result = pytester.runpytest(*([] if installed else ["-p", "ecam.app.pytest_plugin"]),
+                                "--ecam-scenes", "machines", "-ra", "-v")
+    result.assert_outcomes(passed=2, failed=1)
+    result.stdout.fnmatch_lines(["*machines/pair.toml::machine PASSED*",
+                                 "*machines/pair.toml::screw PASSED*",
+                                 "*machines/pair.toml::lifter FAILED*",
+                                 "FAILED machines/pair.toml::lifter - FAIL  tracking_error: *"])
 
 
 def test_find_max_speed_names_the_limiting_station(tmp_path):
@@ -288,3 +391,22 @@ def test_find_max_speed_names_the_limiting_station(tmp_path):
     assert result["periods_per_minute"] == pytest.approx(60.0 * result["speed"] / 360.0)
     last = result["runs"][-1]
     assert last["path"] == "canopen" and last["passed"] and last["speed"] == result["speed"]
+
+
+@pytest.mark.slow
+def test_cli_writes_every_output_of_a_machine(pair_file, tmp_path):
+    """One `ecam sim MACHINE --json --junit --html --plot`: the JSON's axes list carries each
+    axis's report with a single scene's fields, and every file is written."""
+    files = {k: tmp_path / f"pair.{k}" for k in ("xml", "html", "png")}
+    out = subprocess.run([sys.executable, "-m", "ecam.app", "sim", str(pair_file), "--json",
+                          "--junit", str(files["xml"]), "--html", str(files["html"]), "--plot",
+                          str(files["png"])], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert data["machine"] == "pair" and [a["scene"] for a in data["axes"]] == ["screw", "lifter"]
+    assert data["passed"] and {c["name"] for c in data["checks"]} == {"bus_load", "faults"}
+    alone = run_scene(load_machine(pair_file).axes[0], path="fast").to_dict()
+    assert set(data["axes"][0]) == set(alone) | {"node_id", "phase"}
+    assert all(f.stat().st_size > 0 for f in files.values())
+    assert (tmp_path / "pair_screw.png").is_file() and (tmp_path / "pair_lifter.png").is_file()
+    assert "wrote" in out.stderr and "plots:" in out.stderr

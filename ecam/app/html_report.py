@@ -570,7 +570,8 @@ def _overview(labels, results, timing: bool) -> str:
             "</tbody></table>")
 
 
-def html_report(results, title: str = "ecam rig report", timing: bool = False) -> str:
+def html_report(results, title: str = "ecam rig report", timing: bool = False,
+                lead=None) -> str:
     """A self-contained HTML page for rig results.
 
     Parameters
@@ -584,6 +585,9 @@ def html_report(results, title: str = "ecam rig report", timing: bool = False) -
     title : str
     timing : bool
         Show the wall times (then the page is no longer the same bytes run to run).
+    lead : (bool, str, str), optional
+        A machine's page (:mod:`ecam.app.machine_html`): its verdict and headline stand for the
+        page's, its HTML section comes first, and ``results`` are its axes.
 
     Returns
     -------
@@ -618,8 +622,14 @@ def html_report(results, title: str = "ecam rig report", timing: bool = False) -
               f"{failed_checks} failed"
               + (f"; {errors} scene{'s' if errors != 1 else ''} could not run" if errors else "")
               + "</p>")
+    preface = ""
+    if lead is not None:  # a machine: its verdict (bus and faults too) and its section first
+        ok, headline, preface = lead
+        state = "pass" if ok else "fail"
+        if not ok and not lines:
+            failed = "<p>Every axis passed; the machine's own checks failed (below).</p>"
     body = [f'<header class="verdict {state}"><h1>{_e(headline)}</h1>{counts}{failed}</header>',
-            "<h3>Scenes</h3>", _overview(labels, results, timing)]
+            preface, "<h3>Scenes</h3>", _overview(labels, results, timing)]
     # Broken and failed scenes first (stable otherwise): the first section is what broke.
     order = sorted(range(len(results)), key=lambda i: (
         0 if isinstance(results[i][1], BaseException) else 1 if not results[i][1].passed else 2))

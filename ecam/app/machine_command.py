@@ -1,6 +1,7 @@
 """`ecam sim MACHINE.toml`: a machine file (several ``[[axis]]``) run on the rig, its report
 printed as text or JSON; ``--find-max-speed`` searches the machine's speed and names the
-station and the check that limit it. Exit status: 0 when the machine passes, 1 when a check
+station and the check that limit it; ``--plot`` draws the machine and each axis
+(:mod:`hil_sim.rig.machine_plot`), ``--html`` and ``--junit`` are written by ``write_reports``. Exit status: 0 when the machine passes, 1 when a check
 fails."""
 
 from __future__ import annotations
@@ -10,8 +11,9 @@ import json
 import sys
 import time
 
-from ecam.errors import InputError
+from ecam.plot import check_figure_path
 from hil_sim.machine import Machine
+from hil_sim.rig.machine_plot import plot_machine
 from hil_sim.rig.machine_run import run_machine
 from hil_sim.rig.machine_search import find_machine_max_speed
 
@@ -20,11 +22,10 @@ def machine_command(args: argparse.Namespace, machine: Machine, write_reports=No
                     format_search=None) -> int:
     """Run ``machine`` (read from ``args.scene``); print its report; 0 if it passed, else 1.
     ``write_reports(report, seconds)`` writes ``--junit`` (one testcase per machine check and
-    per axis check, named ``axis.check``); ``format_search(result)`` is the text of a
+    per axis check, named ``axis.check``) and ``--html`` (the machine, then each axis); ``format_search(result)`` is the text of a
     ``--find-max-speed`` result."""
-    if args.plot or getattr(args, "html", None):
-        raise InputError(f"scene {args.scene}: --plot and --html take a single-axis scene; "
-                         f"{machine.name} is a machine of {len(machine.axes)} axes")
+    if args.plot:
+        check_figure_path(args.plot)  # before the run, not after it
     if getattr(args, "fidelity", None):
         machine = machine.with_fidelity(args.fidelity)
     start = time.perf_counter()
@@ -43,6 +44,10 @@ def machine_command(args: argparse.Namespace, machine: Machine, write_reports=No
         sys.stdout.write(report.to_text())
         if search is not None and format_search is not None:
             sys.stdout.write(format_search(search))
-    if getattr(args, "junit", None) and write_reports is not None:
+    if args.plot:
+        written = plot_machine(report, args.plot)
+        print(f"plots: {written[0]} (the machine), {', '.join(str(p) for p in written[1:])} "
+              "(each axis)", file=sys.stderr if args.json else sys.stdout)
+    if (getattr(args, "junit", None) or getattr(args, "html", None)) and write_reports is not None:
         write_reports(report, seconds)
     return 0 if report.passed else 1

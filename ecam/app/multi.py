@@ -6,7 +6,8 @@
 
 A path may be a scene file or a directory. In a directory every ``*.toml`` file that is a
 scene (see :func:`is_scene_file`) is run, in sorted order; its other TOML files (cam files) are
-skipped. A path that does not exist, or a directory without a scene, stops the call at once
+skipped. A machine file (several ``[[axis]]``, :mod:`hil_sim.machine`) is one run too, its
+outcome a :class:`~hil_sim.machine_report.MachineReport`. A path that does not exist, or a directory without a scene, stops the call at once
 (a mistake on the command line; nothing runs).
 
 A scene that cannot run does not stop the others, as one broken test does not stop a test
@@ -105,7 +106,8 @@ def _load(items, fidelity: str | None = None) -> list[tuple[object, object]]:
     """[(what the caller named, Scene or the EcamError loading it raised)] for files,
     directories and Scene objects, each with ``fidelity`` when given. A missing path or an
     empty directory raises at once."""
-    from hil_sim.scene import Scene, load_scene
+    from hil_sim.machine import load_machine
+    from hil_sim.scene import Scene
 
     loaded = []
     for item in items:
@@ -114,7 +116,8 @@ def _load(items, fidelity: str | None = None) -> list[tuple[object, object]]:
             continue
         for path in scene_files([item]):
             try:
-                scene = load_scene(path)
+                machine = load_machine(path)  # a scene file is a machine of one
+                scene = machine.axes[0] if machine.single else machine
             except EcamError as exc:  # a broken scene file: reported, the others still run
                 loaded.append((path, exc))
                 continue
@@ -123,12 +126,15 @@ def _load(items, fidelity: str | None = None) -> list[tuple[object, object]]:
 
 
 def _run_one(scene) -> tuple[object, float]:
-    """Run one scene (in this process or a worker); return (Report or EcamError, seconds)."""
+    """Run one scene or machine (in this process or a worker); return (Report, MachineReport or
+    EcamError, seconds)."""
+    from hil_sim.machine import Machine
     from hil_sim.rig import run_scene
+    from hil_sim.rig.machine_run import run_machine
 
     start = time.perf_counter()
     try:
-        outcome = run_scene(scene)
+        outcome = run_machine(scene) if isinstance(scene, Machine) else run_scene(scene)
     except EcamError as exc:  # a scene the rig cannot run: reported, the others still run
         outcome = exc
     except Exception as exc:  # a defect in the rig: this scene errors, the batch goes on

@@ -16,7 +16,9 @@ in every run, where it does nothing unless asked (an option on the command line,
     text report is attached to the item (``pytest -rA`` shows it for passing scenes too).
     One item per scene rather than per check: the checks are only known once the scene has
     run, and a scene runs once however many checks it has (per-check results are in
-    ``ecam sim --junit``). The option may be given several times; ini paths are relative to
+    ``ecam sim --junit``). A machine file (``[[axis]]``) is one item per axis,
+    ``<file>.toml::<axis>``, and one for its own checks, ``<file>.toml::machine``; it runs
+    once (:mod:`ecam.app.pytest_machine`). The option may be given several times; ini paths are relative to
     the ini file's directory.
 
 ``pytest --ecam-html FILE``
@@ -299,6 +301,18 @@ def pytest_collect_file(file_path: Path, parent):
 
     if not is_scene_file(resolved):
         return None
+    from ecam.camfile import read_toml
+    from ecam.errors import CamFileError
+    from hil_sim.machine import is_machine_data
+
+    try:
+        machine = is_machine_data(read_toml(resolved, "scene file"))
+    except CamFileError:  # a broken file: its scene item fails with the error
+        machine = False
+    if machine:  # an item per axis and one for the machine (ecam.app.pytest_machine)
+        from ecam.app.pytest_machine import machine_file
+
+        return machine_file(parent, file_path, _RESULTS)
     return SceneFile.from_parent(parent, path=file_path)
 
 

@@ -15,9 +15,8 @@ from ecam.errors import EcamError, InputError
 from hil_sim.rig import find_max_speed, run_scene
 from hil_sim.rig.bode import bode_path
 from hil_sim.machine import load_machine
-from hil_sim.scene import load_scene
 
-from .html_report import html_report
+from .machine_html import sim_page
 from .junit import junit_xml
 from .machine_command import machine_command
 from .multi import exit_status, run_scenes, scene_files, summary_table
@@ -52,7 +51,7 @@ def _write_reports(args, results, stream, inputs=()) -> None:
     if getattr(args, "junit", None):
         outputs[Path(args.junit)] = junit_xml(results)
     if getattr(args, "html", None):
-        outputs[Path(args.html)] = html_report(results, timing=getattr(args, "timing", False))
+        outputs[Path(args.html)] = sim_page(results, timing=getattr(args, "timing", False))
     try:
         write_files(outputs, inputs)
     except OSError as exc:
@@ -75,6 +74,8 @@ def sim_command(args: argparse.Namespace) -> int:
     if not machine.single:
         inputs = [path] + [a.cam.file for a in machine.axes if a.cam.file]
         _check_outputs(args, inputs)  # before the run: never over the machine or its cams
+        if args.plot:
+            check_outputs([args.plot], inputs)
         return machine_command(
             argparse.Namespace(**{**vars(args), "scene": path}), machine,
             lambda report, seconds: _write_reports(args, [(Path(path), report, seconds)],
@@ -163,15 +164,14 @@ def sim_many(args) -> int:
 
 
 def scene_inputs(paths) -> list:
-    """The files `ecam sim` reads for ``paths``: each scene file and the cam file it names (a
-    scene that does not load names none; its error is its outcome)."""
+    """The files `ecam sim` reads for ``paths``: each scene or machine file and the cam files
+    it names (a file that does not load names none; its error is its outcome)."""
     inputs = []
     for scene_path in scene_files(paths):
         inputs.append(scene_path)
         try:
-            cam_file = load_scene(scene_path).cam.file
+            axes = load_machine(scene_path).axes  # a scene file is a machine of one
         except EcamError:
             continue
-        if cam_file is not None:
-            inputs.append(cam_file)
+        inputs += [axis.cam.file for axis in axes if axis.cam.file is not None]
     return inputs

@@ -12,6 +12,7 @@ from ecam.export import json_safe
 from ..progress import progress_bar
 from .c_runtime import CRuntime
 from .instructions import instruction_rows
+from .machine import bench_machine
 from .plan import MASTER_COUNTS, RIG_CYCLES_HZ, STROKE_COUNTS, bench_plan, bench_queries, plan_jobs
 from .plot import plot_pareto
 from .rig import bench_rig
@@ -34,7 +35,8 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
     """
     plan = bench_plan(quick)
     jobs = plan_jobs(plan)
-    total = len(jobs) + len(RIG_CYCLES_HZ) + 1 + (1 if quick else 2)  # + instructions, sweeps
+    # + instructions, sweeps, the machine's two paths
+    total = len(jobs) + len(RIG_CYCLES_HZ) + 1 + (1 if quick else 2) + 2
     done = 0
 
     def step():
@@ -97,6 +99,7 @@ def run_bench(quick: bool = False, progress=None) -> list[dict]:
         step()
     rows += bench_rig(plan.rig_repeats, progress=step)
     rows += bench_sweep(quick, progress=step)
+    rows += bench_machine(quick, progress=step)
     rows += evaluate_targets(rows)
     return [json_safe(row) for row in rows]
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .machine import machine_lines
 from .sweep import sweep_lines
 from .targets import TARGET_TEXT
 
@@ -67,6 +68,7 @@ def format_text(rows: list[dict]) -> str:
                      f"({r['trials_fast']} bus-free trials, {r['trials_canopen']} over CANopen; "
                      f"resolution {r['resolution']:.3g} {r['unit']})")
     lines += sweep_lines(rows)
+    lines += machine_lines(rows)
     lines += _instruction_lines(rows)
     targets = [r for r in rows if r.get("kind") == "target"]
     if targets:

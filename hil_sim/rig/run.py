@@ -20,6 +20,7 @@ from hil_sim.control import AxisSetup
 from hil_sim.drive import EDS_PATH, VirtualDrive, load_od
 from hil_sim.plant import significant_harmonic_hz
 from hil_sim.report import Report, check
+from hil_sim.rig.acceptance import filter_frames
 from hil_sim.rig.analysis import analyse
 from hil_sim.rig.bode import bode_path, bode_series, plot_bode
 from hil_sim.rig.cam import CompiledCam, cam_acceleration, compile_cam
@@ -314,6 +315,8 @@ def _run_on_the_bus(axes: list) -> tuple[list, dict]:
             drives.append(VirtualDrive(bus=drive_bus, node_id=axis.run.scene.drive.node_id,
                                        initial_counts=axis.run.plan.initial_counts,
                                        **drive_options(axis.setup)))
+            if len(axes) > 1:  # each drive handles its own frames, not every node's
+                filter_frames(drives[-1])
         controller = LockstepMaster(master_bus, drives)
         stations = []
         for axis, drive in zip(axes, drives):

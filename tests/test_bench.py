@@ -50,7 +50,7 @@ def _tables(rows):
 def test_quick_json_is_a_list_of_rows_with_the_contract_fields(quick_run):
     rows, _ = quick_run
     assert isinstance(rows, list) and rows
-    assert all(isinstance(r, dict) and r.get("kind") in {"table", "target", "rig", "rig_search", "sweep", "note"} for r in rows)
+    assert all(isinstance(r, dict) and r.get("kind") in {"table", "target", "rig", "rig_search", "sweep", "machine", "machine_scaling", "note"} for r in rows)
     assert all(field in r for r in rows for field in bench.CONTRACT_KEYS)  # every row: consumers never break
     kinds = [r["kind"] for r in rows]
     assert kinds == sorted(kinds, key=lambda k: k != "table")  # table rows first

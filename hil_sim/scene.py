@@ -101,7 +101,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from ecam.camfile import CAMS_DIR, load_cam, read_tappets, read_toml
-from ecam.errors import CamFileError
+from ecam.errors import CamFileError, InputError
 from ecam.mechanics import Mechanics
 from ecam.profile import CamProfile
 from ecam.table import INTERPOLATIONS, MAX_MASTER_COUNTS
@@ -448,6 +448,11 @@ def parse_scene(data: dict, base: Path = Path("."), source: str = "<scene>",
         raise CamFileError(f"scene {source}: this is a cam file (it has master_period and "
                            "[[segment]]), not a scene: a scene names its cam in [cam] file = ...; "
                            "`ecam check` and `ecam compile` take cam files")
+    if isinstance(data, dict) and "axis" in data:
+        # A machine file (hil_sim.machine) in a directory run or a sweep: say so, not "axis: unknown field".
+        raise InputError(f"scene {source}: this is a machine file (it has [[axis]]), not a single-axis "
+                         "scene: `ecam sim FILE` runs it alone (docs/machine.md); several scene files, "
+                         "`--find-max-speed`, `--plot`, `--html` and `ecam sweep` take single-axis scenes")
     top = Fields(data, "", f"scene {source}", {"name", "description", "cam_mode", "fidelity",
                                               "master", "cam", "drive", "mechanics", "bus",
                                               "limits", "duration", "sweep",

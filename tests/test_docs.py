@@ -97,6 +97,17 @@ def test_the_reference_pages_hold_every_field_and_command(site):
     assert "firmware" in commands
     for name in commands:
         assert f"usage: ecam {name}" in cli, name
+    # and every option of every command (the lately added: fit, sweep, transition, check --then,
+    # sim --timing, drive --heartbeat-ms, export --master-counts ...)
+    import html
+
+    unescaped = html.unescape(cli)
+    subparsers = next(a for a in build_parser()._actions if hasattr(a, "choices")
+                      and isinstance(a.choices, dict)).choices
+    for name, sub in subparsers.items():
+        for action in sub._actions:
+            for option in action.option_strings:
+                assert option in unescaped, (name, option)
     api = _text(site / "reference" / "api.html")
     for name in ("compile_table", "CamTable", "load_scene", "run_scene", "find_max_speed"):
         assert name in api, name

@@ -339,3 +339,14 @@ def test_codesys_says_why_a_joint_where_the_acceleration_jumps_stays_on_a_count(
     assert any(note.startswith("the joints at 15, 105, 120 deg are points on whole master counts (131072 per "
                                "period), beside the joint") for note in exported.notes), exported.notes
     assert exported.certificate.predicted_error_units <= 0.002
+
+
+def test_a_machine_file_where_a_scene_belongs_is_named_as_such():
+    """`ecam sim DIR` with a machine file in DIR said `axis: unknown field`."""
+    from hil_sim.scene import parse_scene
+
+    with pytest.raises(InputError, match=r"this is a machine file \(it has \[\[axis\]\]\), not a single-axis "
+                                         r"scene: `ecam sim FILE` runs it alone") as raised:
+        parse_scene({"name": "line", "master": {"speed_rpm": 60.0}, "axis": [{"name": "a", "node_id": 1}]},
+                    source="line.toml")
+    assert "unknown field" not in str(raised.value)

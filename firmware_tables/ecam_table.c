@@ -2412,7 +2412,8 @@ static int32_t ecam_poly_narrow_quintic(const ecam_poly *p, int64_t m)
  * bits and k = floor(m / M) its shift by j (the low word of the logical shift is that of the
  * arithmetic one for j <= 32), so no reduction at all. Without a net stroke there is no branch
  * either: a master inside the period and any other cost the same. */
-static ECAM_INLINE int32_t ecam_poly_mask_of(const ecam_poly *p, int64_t m, unsigned n, bool narrow, bool net)
+static ECAM_INLINE int32_t ecam_poly_mask_of(const ecam_poly *p, int64_t m, unsigned n, bool narrow, bool net,
+                                              bool ramp)
 {
     uint32_t local = (uint32_t)m;
     uint32_t term = 0u;
@@ -2425,6 +2426,9 @@ static ECAM_INLINE int32_t ecam_poly_mask_of(const ecam_poly *p, int64_t m, unsi
     } else {
         /* inside the period: k = 0 */
     }
+    if (ramp) { /* version 3: step 8's S m_local (modulo 2^32, as the term) */
+        term += local * p->ramp;
+    }
     if (narrow) {
         return ecam_i32((uint32_t)ecam_poly_narrow_at(p, local, n, true) + term);
     }
@@ -2433,68 +2437,106 @@ static ECAM_INLINE int32_t ecam_poly_mask_of(const ecam_poly *p, int64_t m, unsi
 
 static int32_t ecam_poly_mask_linear(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 1u, false, false);
+    return ecam_poly_mask_of(p, m, 1u, false, false, false);
 }
 
 static int32_t ecam_poly_mask_cubic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 3u, false, false);
+    return ecam_poly_mask_of(p, m, 3u, false, false, false);
 }
 
 static int32_t ecam_poly_mask_quintic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 5u, false, false);
+    return ecam_poly_mask_of(p, m, 5u, false, false, false);
 }
 
 static int32_t ecam_poly_mask_net_linear(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 1u, false, true);
+    return ecam_poly_mask_of(p, m, 1u, false, true, false);
 }
 
 static int32_t ecam_poly_mask_net_cubic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 3u, false, true);
+    return ecam_poly_mask_of(p, m, 3u, false, true, false);
 }
 
 static int32_t ecam_poly_mask_net_quintic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 5u, false, true);
+    return ecam_poly_mask_of(p, m, 5u, false, true, false);
 }
 
 static int32_t ecam_poly_narrow_mask_linear(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 1u, true, false);
+    return ecam_poly_mask_of(p, m, 1u, true, false, false);
 }
 
 static int32_t ecam_poly_narrow_mask_cubic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 3u, true, false);
+    return ecam_poly_mask_of(p, m, 3u, true, false, false);
 }
 
 static int32_t ecam_poly_narrow_mask_quintic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 5u, true, false);
+    return ecam_poly_mask_of(p, m, 5u, true, false, false);
 }
 
 static int32_t ecam_poly_narrow_mask_net_linear(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 1u, true, true);
+    return ecam_poly_mask_of(p, m, 1u, true, true, false);
 }
 
 static int32_t ecam_poly_narrow_mask_net_cubic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 3u, true, true);
+    return ecam_poly_mask_of(p, m, 3u, true, true, false);
 }
 
 static int32_t ecam_poly_narrow_mask_net_quintic(const ecam_poly *p, int64_t m)
 {
-    return ecam_poly_mask_of(p, m, 5u, true, true);
+    return ecam_poly_mask_of(p, m, 5u, true, true, false);
 }
 
-/* The kernel of a table whose period is M = 2^j (ecam_poly_mask_of), by degree, word width and
- * net stroke. */
-static ecam_poly_kernel ecam_poly_mask_kernel(unsigned degree, bool narrow, bool net)
+static int32_t ecam_poly_mask_ramp_linear(const ecam_poly *p, int64_t m)
 {
+    return ecam_poly_mask_of(p, m, 1u, false, true, true);
+}
+
+static int32_t ecam_poly_mask_ramp_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, false, true, true);
+}
+
+static int32_t ecam_poly_mask_ramp_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, false, true, true);
+}
+
+static int32_t ecam_poly_narrow_mask_ramp_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 1u, true, true, true);
+}
+
+static int32_t ecam_poly_narrow_mask_ramp_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 3u, true, true, true);
+}
+
+static int32_t ecam_poly_narrow_mask_ramp_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_mask_of(p, m, 5u, true, true, true);
+}
+
+/* The kernel of a table whose period is M = 2^j (ecam_poly_mask_of), by degree, word width, net
+ * stroke and ramp (version 3, which has a net stroke). */
+static ecam_poly_kernel ecam_poly_mask_kernel(unsigned degree, bool narrow, bool net, bool ramp)
+{
+    static const ecam_poly_kernel wide_ramp[3] = {ecam_poly_mask_ramp_linear, ecam_poly_mask_ramp_cubic,
+                                                  ecam_poly_mask_ramp_quintic};
+    static const ecam_poly_kernel thin_ramp[3] = {ecam_poly_narrow_mask_ramp_linear, ecam_poly_narrow_mask_ramp_cubic,
+                                                  ecam_poly_narrow_mask_ramp_quintic};
+
+    if (ramp) {
+        return narrow ? thin_ramp[degree / 2u] : wide_ramp[degree / 2u];
+    }
     static const ecam_poly_kernel wide[2][3] = {
         {ecam_poly_mask_linear, ecam_poly_mask_cubic, ecam_poly_mask_quintic},
         {ecam_poly_mask_net_linear, ecam_poly_mask_net_cubic, ecam_poly_mask_net_quintic}};
@@ -2667,7 +2709,8 @@ int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t bu
         p->kernel = pow2 ? ecam_poly_quintic_pow2 : ecam_poly_quintic;
     }
     p->master_mask = t->master_counts - 1u;
-    if (pow2 && ((t->master_counts & p->master_mask) == 0u) && (t->ramp == 0u) &&
+    p->ramp = t->ramp;
+    if (pow2 && ((t->master_counts & p->master_mask) == 0u) &&
         (p->outside != (uint8_t)ECAM_POLY_COLD)) { /* M = 2^j, no clamp, no fractional net stroke */
         const bool narrow = (p->kernel == ecam_poly_narrow_linear_pow2) || (p->kernel == ecam_poly_narrow_cubic_pow2) ||
                             (p->kernel == ecam_poly_narrow_quintic_pow2);
@@ -2675,9 +2718,9 @@ int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t bu
         while ((UINT32_C(1) << p->master_shift) != t->master_counts) {
             p->master_shift++;
         }
-        p->kernel = ecam_poly_mask_kernel(t->degree, narrow, p->outside == (uint8_t)ECAM_POLY_WRAP_WHOLE);
-    }
-    if (t->ramp != 0u) { /* version 3: the kernel runs inside the ramp's */
+        p->kernel = ecam_poly_mask_kernel(t->degree, narrow, p->outside == (uint8_t)ECAM_POLY_WRAP_WHOLE,
+                                          t->ramp != 0u);
+    } else if (t->ramp != 0u) { /* version 3: the kernel runs inside the ramp's */
         p->ramp_kernel = p->kernel;
         p->kernel = ecam_poly_ramp;
     }

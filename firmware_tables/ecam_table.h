@@ -291,6 +291,7 @@ struct ecam_poly {
     ecam_poly_kernel ramp_kernel; /* version 3: the kernel the ramp's kernel calls (else NULL) */
     uint32_t master_mask;      /* M - 1 (a period of M = 2^j: the wrap is m & (M - 1)) */
     uint8_t master_shift;      /* j when M = 2^j and the mask kernels run, else 0 */
+    uint32_t ramp;             /* version 3: S of step 8, as int32 bits (else 0) */
 };
 
 /* Bytes of int64 buffer the expansion of t needs; 0 when t is NULL or not ready. */

@@ -6,6 +6,7 @@ table compiled with ``horner_bits=32`` runs the narrow (32x32) kernels."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -75,6 +76,18 @@ def mask_tables() -> list:
                                                          slave_counts_per_unit=1e-3, certify=False)))
         out.append((f"mask-knife-frac-{kind}", compile_table(knife, interp=kind, points=17, master_counts=2**16,
                                                              slave_counts_per_unit=1000.0001, certify=False)))
+        # format version 3 (step 8): the mask kernels with the ramp (M = 2^20), and the ramp's own
+        # kernel in front of the others (M = 3 x 2^19, a fractional net stroke)
+        for bits in (32, 64):
+            out.append((f"ramp-drum-{kind}-{bits}", compile_table(knife, interp=kind, points=65, master_counts=2**20,
+                                                                  slave_counts_per_unit=2**26 / 360,
+                                                                  horner_bits=bits, certify=False)))
+        out.append((f"ramp-drum-3x2^19-{kind}", compile_table(knife, interp=kind, points=97, master_counts=3 * 2**19,
+                                                              slave_counts_per_unit=2**30 / 360, horner_bits=32,
+                                                              certify=False)))
+        out.append((f"ramp-drum-frac-{kind}", compile_table(knife, interp=kind, points=65, master_counts=2**20,
+                                                            slave_counts_per_unit=2**26 / 360 + 0.37, certify=False)))
+    assert all(table.format_version == 3 for name, table in out if name.startswith("ramp"))
     return out
 
 
@@ -106,6 +119,10 @@ def _cases():
             for M, N in ((2**20, 64), (360_000, 60), (3, 1)):
                 table = cb.random_table(rng, degree, periodic, M, N)
                 out.append((f"random-{degree}-{periodic}-{M}", cb.make_blob(table), cb.random_queries(rng, table, 2000)))
+        # a negative ramp (S = -5, version 3), through the mask kernels and through the ramp's
+        for M, N in ((2**20, 64), (360_000, 60)):
+            table = dataclasses.replace(cb.random_table(rng, degree, True, M, N), net_num=-5 * M + 3, ramp=True)
+            out.append((f"random-ramp-{degree}-{M}", cb.make_blob(table), cb.random_queries(rng, table, 2000)))
     return out
 
 

@@ -111,3 +111,13 @@ def test_the_knifes_regeneration_is_rated_against_the_stand_in_dc_link():
     # C (U_chop^2 - U_dc^2) / 2 between the knife's 600 V and the AKD's 786 V: 30.29 J
     assert line.limit == pytest.approx(0.5 * 235e-6 * (786.0**2 - 600.0**2))
     assert line.passed and line.value > 0.0
+
+
+def test_the_torque_speed_curves_run_to_the_no_load_speed_without_a_maximum_speed():
+    run, _ = prepare(load_scene(SCENES / "stiff_coupling.toml"))
+    series = sizing_checks(run)[2]
+    # U_D / sqrt 2 over Ke: 320 / sqrt 2 V / 31.6 V per 1000 rpm = 7160 rpm, where the peak
+    # curve (the voltage limit) reaches 0
+    assert series["sizing_curve_rpm"][-1] == pytest.approx(320.0 / math.sqrt(2.0) / 31.6 * 1000.0)
+    assert series["sizing_peak_torque"][-1] == pytest.approx(0.0, abs=1e-9)
+    assert series["sizing_peak_torque"][0] == 5.53

@@ -350,8 +350,17 @@ def sizing_checks(run: PreparedRun) -> tuple[list[Check], dict, dict]:
               "sizing_torque": duty.motor_torque}
     if motor is not None:
         fastest = float(np.max(duty.speed_rpm))
-        # without a catalogue maximum speed the curves run to 1.5 x the duty's fastest sample
-        top = 1.5 * fastest if motor.max_speed_rpm is None else max(motor.max_speed_rpm, fastest)
+        # without a catalogue maximum speed the curves run to the no-load speed of the voltage
+        # limit (where the peak curve reaches 0), else to 1.5 x the duty's fastest sample
+        if motor.max_speed_rpm is not None:
+            top = max(motor.max_speed_rpm, fastest)
+        elif module is not None and module.dc_bus_voltage is not None:
+            top = max(sizing.VoltageLimit(motor.torque_constant, motor.voltage_constant,
+                                          motor.winding_resistance, module.dc_bus_voltage,
+                                          motor.inductance, motor.pole_pairs).no_load_speed()
+                      / sizing.RPM, fastest)
+        else:
+            top = 1.5 * fastest
         rpm = np.linspace(0.0, top, CURVE_POINTS)
         series.update(sizing_curve_rpm=rpm,
                       sizing_s1_torque=sizing.s1_torque(rpm, motor.s1_points()),

@@ -275,6 +275,34 @@ def test_each_switch_brings_its_own_mc_camin_offsets(driver):
     assert [out[-2][1], out[-1][1]] == [tables[DRRD].lookup(M + S - 520) + 9, tables[DRRD].lookup(M + S - 519) + 9]
 
 
+def test_with_the_master_relative_the_firmware_jumps_as_ecam_check_predicts(driver):
+    """The knife switched to itself at its first period end: the position jump in counts is
+    ecam.cam_join's (`ecam check --then`) times the table's counts per degree when the master is
+    relative; with the master absolute the table's own coordinates carry the net stroke (the
+    documented difference): no jump with the slave absolute, the slave's position at the
+    boundary (+360 deg) with it relative, where cam_join says -360 deg and 0."""
+    from ecam import load_cam
+    from ecam.cam_join import join_cams
+
+    table = driver[1][KNIFE]
+    cam = load_cam(ROOT / "ecam" / "cams" / "rotary_knife.toml")
+    per_unit = table.net_stroke / cam.net_stroke  # slave counts per degree
+    assert per_unit == 1000
+    M = table.master_counts
+    jumps = {}
+    for master in ("absolute", "relative"):
+        for slave in ("absolute", "relative"):
+            out = both(driver, [(ENGAGE, KNIFE, 0, 0), *steps([M - 1]), (ARM, KNIFE, mode_flags(master, slave)),
+                                *steps([M])])  # fmt: skip
+            assert out[-1][0] == CODES["ECAM_SWITCH_DONE"]
+            join = join_cams(cam, cam, master=master, slave=slave)
+            jumps[master, slave] = (out[-1][1] - table.lookup(M), round((join.right[0] - join.left[0]) * per_unit))
+    assert jumps["relative", "absolute"] == (-360_000, -360_000)
+    assert jumps["relative", "relative"] == (0, 0)
+    assert jumps["absolute", "absolute"] == (0, -360_000)
+    assert jumps["absolute", "relative"] == (360_000, 0)
+
+
 # ------------------------------------------------------------------------------ tables that do not repeat
 
 def test_a_table_that_does_not_repeat_switches_where_its_profile_ends(driver):

@@ -13,7 +13,10 @@ The rig in four calls (see the documentation's "Python API" page)::
   with an in-memory :class:`ecam.CamProfile` in place of the scene's cam file if given;
 * :func:`run_scene` -> :class:`Report` (its :class:`Check` items each carry a value and a limit);
   :func:`find_max_speed`: the highest master speed at which every check passes;
-* :class:`VirtualDrive`: the CiA 402 drive alone, for a CANopen master of your own.
+* :class:`VirtualDrive`: the CiA 402 drive alone, for a CANopen master of your own;
+* ``MACHINES_DIR``, :func:`load_machine`, :func:`run_machine` -> :class:`MachineReport`
+  (several axes from one virtual master on one bus) and :func:`find_machine_max_speed` (the
+  machine's speed, and the station and check that limit it).
 
 Everything but ``SCENES_DIR`` is imported on first use, so ``import hil_sim`` (as every ``ecam``
 command does) loads no CAN stack; running one does; reading a scene does not.
@@ -23,6 +26,8 @@ from pathlib import Path
 
 #: The shipped example scenes (the demo's and the bench's).
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
+#: The shipped machines (several axes on one bus; docs/machine.md).
+MACHINES_DIR = Path(__file__).resolve().parent / "machines"
 
 _LAZY = {
     "VirtualDrive": ("hil_sim.drive", "VirtualDrive"),
@@ -33,8 +38,13 @@ _LAZY = {
     "Scene": ("hil_sim.scene", "Scene"),
     "Report": ("hil_sim.report", "Report"),
     "Check": ("hil_sim.report", "Check"),
+    "load_machine": ("hil_sim.machine", "load_machine"),
+    "Machine": ("hil_sim.machine", "Machine"),
+    "run_machine": ("hil_sim.rig.machine_run", "run_machine"),
+    "find_machine_max_speed": ("hil_sim.rig.machine_search", "find_machine_max_speed"),
+    "MachineReport": ("hil_sim.machine_report", "MachineReport"),
 }
-__all__ = ["SCENES_DIR", *sorted(_LAZY)]
+__all__ = ["MACHINES_DIR", "SCENES_DIR", *sorted(_LAZY)]
 
 
 def __getattr__(name):

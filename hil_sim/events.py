@@ -35,6 +35,13 @@ limit, per master unit (and per second at the master's speed there); a position,
 acceleration jump is an error of the report unless the event says ``allow_jump = true``, a jerk
 jump a warning, as :func:`ecam.cam_join.join_cams` judges a join.
 
+Sources (the vendors' pages quoted above): CODESYS SoftMotion, "Function Blocks: MC_CamTableSelect
+and MC_CamIn" (content.helpme-codesys.com, _sm_basic_function_blocks.html); Beckhoff TwinCAT NC
+Camming, ``MC_StartMode`` (infosys.beckhoff.com tf5050_tc3_nc_camming/1003815691.html) and
+``ST_CamScalingData`` (tf5050_tc3_nc_camming/1003864075.html); Beckhoff CNC ``MC_Phasing``
+(tccncmcplatform_fb/15306202763.html); SEW-EURODRIVE ``MC_PhasingRelative``
+(download.sew-eurodrive.com, 31988954/en-EN/56796799627.html).
+
 One module for both paths: :func:`apply_events` turns the events into what the master and the
 drive see. Controller-side (cam mode "controller"), the set points the controller streams (the
 plan's targets and velocity offsets); drive-side (cam mode "drive"), the master position it
@@ -626,9 +633,10 @@ def _sample(program: _Program, cam, t_set, t_end, targets, velocities, reference
             start, segment = program.out
             idx = np.flatnonzero(times >= start)
             # at rest after the stop: ruckig ends within its 1e-8 contract, the stop is exact
-            rest = (segment.state(segment.duration)[0], 0.0, 0.0)
-            states = np.array([segment.state(tt - start) if tt - start < segment.duration else rest
-                               for tt in times[idx]]).reshape(-1, 3)
+            states = np.zeros((idx.size, 3))
+            states[:, 0] = segment.state(segment.duration)[0]
+            moving = times[idx] - start < segment.duration
+            states[moving] = [segment.state(tt - start) for tt in times[idx][moving]]
             if kind == "set":
                 targets[idx] = np.rint(states[:, 0] * scale).astype(np.int64)
                 velocities[idx] = states[:, 1] * scale

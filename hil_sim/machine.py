@@ -47,7 +47,7 @@ from hil_sim.scene import MAX_MASTER_SPEED, Scene, parse_scene
 
 #: The keys of one ``[[axis]]`` table.
 AXIS_KEYS = ("name", "node_id", "cam_mode", "fidelity", "phase", "cam", "drive", "mechanics",
-             "motor", "limits")
+             "motor", "limits", "event", "tappet")
 #: At most this many axes: the node ids of one CANopen network (CiA 301: 1..127).
 MAX_AXES = 127
 
@@ -155,7 +155,7 @@ def _axis(top: Fields, i: int, table, base: Path, source: str) -> Scene:
     if "node_id" in drive:
         raise drive.error(f"{drive.name('node_id')}: give the node id as axis[{i}].node_id")
     mapping = {key: table[key] for key in ("cam_mode", "fidelity", "cam", "mechanics", "motor",
-                                           "limits") if key in table}
+                                           "limits", "event", "tappet") if key in table}
     mapping.update({"name": name, "drive": {**drive.raw, "node_id": node_id}})
     for key in ("master", "bus", "duration"):
         if key in top.raw:

@@ -228,3 +228,25 @@ def test_the_figure_shows_the_events_and_names_the_jump():
     assert not report.passed and not report.check("switch_jumps").passed
     titles = [ax.get_title(loc="left") for ax in report_figure(report).axes]
     assert "events: a switch jumps" in titles
+
+
+def test_a_scene_tappet_outside_the_period_is_named():
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data["tappet"] = [{"on": 10.0, "off": 400.0}]
+    scene = parse_scene(data, base=SCENES_DIR, source="s.toml")
+    with pytest.raises(InputError, match=r"tappet\[0\]\.off: 400 should be within the master period 0..360"):
+        _plan(scene)
+
+
+def test_each_axis_of_a_machine_takes_its_events():
+    from hil_sim.machine import parse_machine
+
+    scene = tomllib.loads((SCENES_DIR / "changeover_immediate.toml").read_text())
+    axis = {key: scene[key] for key in ("cam", "drive", "mechanics", "limits", "event")}
+    axis.update(name="b", node_id=2)
+    axis["drive"] = {k: v for k, v in axis["drive"].items() if k != "node_id"}
+    data = {"master": scene["master"], "duration": scene["duration"],
+            "axis": [dict(axis, name="a", node_id=1, event=[]), axis]}
+    machine = parse_machine(data, base=SCENES_DIR, source="m.toml")
+    assert [len(a.events) for a in machine.axes] == [0, 1]
+    assert machine.axes[1].events[0].name == "to_product_b"

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ecam.errors import InputError, SimulationError
+from ecam.validate import renamed
 from ecam.mechanics import Mechanics
 from hil_sim.control import Gains
 from hil_sim.effects import EffectValues
@@ -178,6 +179,11 @@ def plan_run(scene: Scene, cam: CompiledCam, jitter: np.ndarray, cycles: int) ->
             master_end if scene.cam_mode == "drive" else None, cycle_s)
         if shifted is not None:
             master_end = shifted
+    for i, track in enumerate(scene.tappets):  # the scene's, against its cam's period
+        try:
+            track.within(period)
+        except InputError as exc:
+            raise renamed(exc, lambda name, i=i: f"tappet[{i}].{name}") from None
     tracks = tuple(profile.tappets) + tuple(scene.tappets)
     edges = (tappet_edges(tracks, master, per_unit, period, table.master_counts, cycle_s, cycles)
              if tracks else ())

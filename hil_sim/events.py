@@ -498,7 +498,7 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     for requested, _, event in sorted(requests, key=lambda r: (r[0], r[1])):
         if requested == math.inf:  # the master never gets there within the run
             if event.action in ("switch", "offset"):
-                switches.append(Switch(event, math.nan, None))
+                switches.append(Switch(event, math.nan, None, cam=event.cam.stem if event.cam else ""))
             continue
         if program.out is not None:
             raise InputError(f"{event.label}: at {requested:.6g} s should come before the cam_out "

@@ -92,7 +92,7 @@ def run_fast(run: PreparedRun, setup: AxisSetup) -> Record:
             else:
                 cam.observe(cycle_s)
                 cycle(targets[k], velocities[k])
-            if k in commands:  # the controller's SDO writes after this SYNC (hil_sim.events)
+            if commands and k in commands:  # the controller's SDO writes after this SYNC
                 for command in commands[k]:
                     _write(cam, values, command)
         else:

@@ -177,6 +177,10 @@ class _Cycles:
             drive.axis_wall_s = 0.0
         cycle_s = self.cycle_s
         stations = self.stations
+        commands: dict = {}  # cycle -> [(station, the events' SDO writes to its cam slot)]
+        for station in stations:
+            for k, writes in station.commands.items():
+                commands.setdefault(k, []).append((station, writes))
         self.rpdo_fate = self._fate(0, "rpdo")
         for k in range(self.cycles):
             now = k * cycle_s
@@ -197,9 +201,10 @@ class _Cycles:
             if self.held_rx:
                 self._release_held_tpdos(k)
             self._receive_and_arbitrate(k)
+            if commands and k in commands:  # drive-side events: after the cycle's TPDOs, so
+                for station, writes in commands[k]:  # the SDO answers are the only frames read
+                    send_cam_commands(station.node, writes)
             for station in stations:
-                if k in station.commands:  # after the cycle's TPDOs: the SDO answers are its own
-                    send_cam_commands(station.node, station.commands[k])
                 station.recorder.probe(k, station.axis)
             self.end_cycle()
             for station in stations:

@@ -68,4 +68,8 @@ MACHINE_FIELDS: tuple[Field, ...] = (
     Field("axis", "motor", "table", "A scene's `[motor]` (sizing).", default_text="no motor",
           source=_SCENE),
     Field("axis", "limits", "table", "A scene's `[limits]`.", default=REQUIRED, source=_SCENE),
+    Field("axis", "event", "array of tables", "A scene's `[[event]]`s: the station's cam switches, "
+          "offsets, phase shifts and cam-out (hil_sim.events).", default_text="none", source=_SCENE),
+    Field("axis", "tappet", "array of tables", "A scene's `[[tappet]]`s: the station's digital cam "
+          "switches, their edges checked.", default_text="none", source=_SCENE),
 )

@@ -68,14 +68,6 @@ class _Pattern:
             self.slots = np.tile(self.slots, self.length // self.slots.size)
         self.slots[phase::every] += frame_bits(length)
 
-    def with_frame(self, frame) -> int:
-        """The peak if ``frame`` were added."""
-        length, every, phase = frame
-        if not self.exact or self.length % every:
-            return int(self.slots.max()) + frame_bits(length)
-        return max(int(self.slots.max()),
-                   int(self.slots[phase::every].max()) + frame_bits(length))
-
     @property
     def peak(self) -> int:
         return int(self.slots.max())
@@ -159,22 +151,33 @@ def size_bus(axes: dict, bitrate: int, cycle_s: float, load_percent: float, *,
 
 def _more_axes(pattern: _Pattern, frames: list, budget: int, sync_counter: bool,
                room: int) -> int:
-    """How many copies of an axis's frames still fit under ``budget``, each copy's TPDOs
-    started (with the SYNC counter) on the phase that keeps the peak lowest."""
-    trial = _Pattern([], 0)
-    trial.length, trial.exact, trial.slots = pattern.length, pattern.exact, pattern.slots.copy()
+    """How many copies of an axis's frames still fit under ``budget``. With the SYNC counter
+    each copy gets the SYNC start value that keeps the peak lowest, one for all its TPDOs (as
+    ``[drive] tpdo_sync_start``): a frame of every n-th SYNC then goes on phase start mod n."""
+    trial = _copy(pattern)
+    cycle = math.lcm(*(every for _, every, _ in frames)) if frames else 1
+    starts = range(cycle) if sync_counter and cycle > 1 else (None,)
     added = 0
     while added < room:
-        placed = []
-        for length, every, phase in frames:
-            phases = range(every) if sync_counter and every > 1 else (phase,)
-            best = min(phases, key=lambda p: (trial.with_frame((length, every, p)), p))
-            placed.append((length, every, best))
-            trial.add((length, every, best))
-        if trial.peak > budget:
+        best = None
+        for start in starts:
+            candidate = _copy(trial)
+            for length, every, phase in frames:
+                candidate.add((length, every, phase if start is None or every == 1
+                               else start % every))
+            if best is None or candidate.peak < best.peak:
+                best = candidate
+        if best.peak > budget:
             return added
+        trial = best
         added += 1
     return added
+
+
+def _copy(pattern: _Pattern) -> _Pattern:
+    out = _Pattern([], 0)
+    out.length, out.exact, out.slots = pattern.length, pattern.exact, pattern.slots.copy()
+    return out
 
 
 def spreading_text(sizing: dict) -> str:

@@ -20,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ecam import CamTable
+from ecam import CamTable, compile_table, load_cam
 from ecam.errors import InputError
 from ecam.table_pair import CODES, MASTER_RELATIVE, SLAVE_RELATIVE, SwitchPair, SwitchRefused, mode_flags
 
@@ -38,13 +38,15 @@ INIT, ENGAGE, ARM, CANCEL, STEP = range(5)
 BOTH = MASTER_RELATIVE | SLAVE_RELATIVE
 
 # The table pool, by index in the driver's argument list.
-DRRD, SINE, KNIFE, KNIFE_Q, SINGLE, TINY_SINGLE, TINY, BROKEN = range(8)
-PERIODIC = (DRRD, SINE, KNIFE, KNIFE_Q, TINY)
+DRRD, SINE, KNIFE, KNIFE_Q, SINGLE, TINY_SINGLE, TINY, DRUM, BROKEN = range(9)
+PERIODIC = (DRRD, SINE, KNIFE, KNIFE_Q, TINY, DRUM)
 
 
 def table_pool() -> list[bytes]:
     """Blobs: the golden periodic tables (a net stroke among them), random tables that do not
-    repeat, a periodic table of 6 counts (boundaries everywhere), and a corrupt blob."""
+    repeat, a periodic table of 6 counts (boundaries everywhere), the knife's drum at 2^26 counts
+    per turn (format version 3, its data relative to its ramp; int32 wraps every 32 turns) and a
+    corrupt blob."""
     vectors = FIRMWARE / "vectors"
     rng = np.random.default_rng(23_2026)
     blobs = [(vectors / f"{stem}.bin").read_bytes() for stem in
@@ -52,6 +54,11 @@ def table_pool() -> list[bytes]:
     blobs.append(cb.make_blob(cb.random_table(rng, 3, False, 3000, 30)))
     blobs.append(cb.make_blob(cb.random_table(rng, 1, False, 7, 7)))
     blobs.append(cb.make_blob(cb.random_table(rng, 5, True, 6, 3)))
+    knife = load_cam(FIRMWARE / "cams" / "rotary_knife.toml")
+    drum = compile_table(knife, interp="quintic", points=129, master_counts=2**20, slave_counts_per_unit=2**26 / 360,
+                         certify=False)  # fmt: skip
+    assert drum.format_version == 3
+    blobs.append(drum.to_bytes())
     broken = bytearray(blobs[0])
     broken[-1] ^= 0xFF  # payload CRC fails: ecam_table_init leaves the table not ready
     blobs.append(bytes(broken))
@@ -232,6 +239,18 @@ def test_a_relative_switch_of_the_knife_to_itself_changes_no_count(driver):
         assert out[8][0] == CODES["ECAM_SWITCH_DONE"] and out[8][3] == 3 * M
 
 
+def test_the_drum_switched_relatively_past_the_int32_wrap_changes_no_count(driver):
+    """The knife's drum at 2^26 counts per turn (format version 3): after 40 turns its position
+    has wrapped int32 (at 32 turns); switched to itself with master and slave relative, the
+    offset carried modulo 2^32 keeps every count of the unswitched drum."""
+    M = driver[1][DRUM].master_counts
+    masters = [40 * M + d for d in (-3, -1, 0, 1, 5000)]
+    plain = [row[1] for row in both(driver, [(ENGAGE, DRUM, 0, 0), *steps(masters)])[1:]]
+    out = both(driver, [(ENGAGE, DRUM, 0, 0), *steps([40 * M - 9]), (ARM, DRUM, BOTH), *steps(masters)])
+    assert [row[1] for row in out[3:]] == plain and out[5][0] == CODES["ECAM_SWITCH_DONE"]
+    assert plain[2] == cb.int32_wrap(40 * 2**26)  # the turns' stroke, wrapped
+
+
 def test_a_relative_slave_is_continuous_into_a_cam_that_starts_at_zero(driver):
     """DRRD -> SINE at DRRD's period end, both starting at 0: with the slave relative the slave
     position at the boundary is DRRD's there, and the positions around it move by no more than
@@ -281,7 +300,6 @@ def test_with_the_master_relative_the_firmware_jumps_as_ecam_check_predicts(driv
     relative; with the master absolute the table's own coordinates carry the net stroke (the
     documented difference): no jump with the slave absolute, the slave's position at the
     boundary (+360 deg) with it relative, where cam_join says -360 deg and 0."""
-    from ecam import load_cam
     from ecam.cam_join import join_cams
 
     table = driver[1][KNIFE]
@@ -375,7 +393,7 @@ def test_refusals_in_python_name_field_value_and_code():
 # ------------------------------------------------------------------------------ property: C == Python
 
 def _pool_sizes():
-    return {k: m for k, m in zip(range(7), (36864, 65536, 36000, 36000, 3000, 7, 6))}
+    return {k: m for k, m in zip(range(8), (36864, 65536, 36000, 36000, 3000, 7, 6, 2**20))}
 
 
 @st.composite
@@ -398,7 +416,7 @@ def scripts(draw):
         elif kind == "cancel":
             script.append((CANCEL, 0, 0, 0))
         else:
-            size = draw(st.sampled_from((4, 4, 70_000, 300_000)))
+            size = draw(st.sampled_from((4, 4, 70_000, 300_000, 3_000_000)))
             master += draw(st.integers(-size, size))
             master = max(-(2**63), min(2**63 - 1, master))
             script.append((STEP, master, 0, 0))
@@ -431,7 +449,7 @@ def random_script(rng: np.random.Generator, commands: int) -> list[tuple]:
         elif r < 0.15:
             script.append((CANCEL, 0, 0, 0))
         else:
-            size = int(rng.choice([4, 4, 70_000, 300_000]))
+            size = int(rng.choice([4, 4, 70_000, 300_000, 3_000_000]))
             master += int(rng.integers(-size, size + 1))
             script.append((STEP, master, 0, 0))
     return script

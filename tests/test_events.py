@@ -57,9 +57,9 @@ def test_a_switch_that_changes_nothing_changes_no_bit():
 def test_the_changeover_switches_are_continuous_as_cam_join_says(changeover):
     scene, plan = changeover
     first, second = plan.events.switches
-    assert (first.active_s, first.master) == (pytest.approx(2.0), pytest.approx(720.0))
+    assert (first.active_s, first.master) == (pytest.approx(1.0), pytest.approx(360.0))
     # the transition ends 90 deg later: product B from there, master relative
-    assert (second.active_s, second.master) == (pytest.approx(2.25), pytest.approx(810.0))
+    assert (second.active_s, second.master) == (pytest.approx(1.25), pytest.approx(450.0))
     assert first.jumps == () and second.jumps == ()
     seed = load_cam(scene.cam.file)
     transition, product_b = load_cam(CAMS / "a_to_b.toml"), load_cam(CAMS / "product_b.toml")
@@ -110,11 +110,11 @@ def test_the_phase_shift_and_the_cam_out_hold_their_limits(changeover):
     for motion in (phase, out):
         for peak, limit in zip(motion.peaks, motion.limits):
             assert peak <= limit * (1 + 1e-8)
-    # after the shift the reference is product B at the master plus 3 deg (relative from 810)
+    # after the shift the reference is product B at the master plus 3 deg (relative from 450)
     product_b = load_cam(CAMS / "product_b.toml")
-    k = int(round(3.0 / plan.cycle_s)) - 1  # t = 3 s: the shift done, the cam-out to come
+    k = int(round(2.3 / plan.cycle_s)) - 1  # t = 2.3 s: the shift done, the cam-out to come
     master = plan.master_units[k]
-    assert plan.reference_units[k] == pytest.approx(float(product_b(master - 810.0 + 3.0)), abs=1e-12)
+    assert plan.reference_units[k] == pytest.approx(float(product_b(master - 450.0 + 3.0)), abs=1e-12)
     # the cam-out ends at rest: the last set points stand still
     assert np.all(plan.targets[-100:] == plan.targets[-1]) and np.all(plan.velocities[-100:] == 0.0)
     assert plan.events.phase[-1] == pytest.approx(3.0)
@@ -126,7 +126,7 @@ def test_the_tappet_edges_come_within_a_cycle_with_the_compensation(changeover):
     it 7.2 deg late (plus that cycle)."""
     _, plan = changeover
     (glue,) = plan.tappets
-    assert glue.edges == 8  # on and off in each of four periods
+    assert glue.edges == 6  # on and off in each of three periods
     assert glue.worst <= SPEED * 0.001
     assert SPEED * 0.02 <= glue.worst_uncompensated <= SPEED * 0.021
     for row in glue.rows:
@@ -153,7 +153,7 @@ def test_bad_events_are_refused_naming_the_field(event, message):
 
 def test_events_after_a_cam_out_and_drive_side_events_are_refused():
     late = _scene("changeover")
-    late = replace(late, events=late.events + (replace(late.events[0], index=9, at_position=1400.0),))
+    late = replace(late, events=late.events + (replace(late.events[0], index=9, at_position=1000.0),))
     with pytest.raises(InputError, match="should come before the cam_out"):
         _plan(late)
     drive = replace(_scene("changeover"), cam_mode="drive", duration=DurationSpec(cycles=10))
@@ -250,3 +250,21 @@ def test_each_axis_of_a_machine_takes_its_events():
     machine = parse_machine(data, base=SCENES_DIR, source="m.toml")
     assert [len(a.events) for a in machine.axes] == [0, 1]
     assert machine.axes[1].events[0].name == "to_product_b"
+
+
+def test_offsets_and_scaling_move_the_cam_as_mc_camin_places_it():
+    """An offset event, immediate, in the middle of the seed's rise at 120 deg: SlaveScaling 2
+    doubles the cam there (the position jumps by A(120), the velocity by A'(120)); SlaveOffset
+    0.1 in adds to the position only; MasterOffset 360 (a whole period) changes nothing."""
+    seed = load_cam(SCENES_DIR / "../../firmware_tables/cams/combination_drrd.toml")
+    base = {"action": "offset", "at_position": 120.0, "activation": "immediate",
+            "allow_jump": True}
+    cases = ({"slave_scaling": 2.0}, {"slave_offset": 0.1}, {"master_offset": 360.0})
+    plans = [_plan(_scene("stiff_coupling", event=[dict(base, **case)])) for case in cases]
+    scaled, shifted, whole = (p.events.switches[0] for p in plans)
+    a = [float(seed(120.0, order)) for order in range(3)]
+    assert dict(scaled.jumps)[0] == pytest.approx(a[0], rel=1e-9)
+    assert dict(scaled.jumps)[1] == pytest.approx(a[1], rel=1e-9)
+    assert dict(scaled.jumps)[2] == pytest.approx(a[2], rel=1e-9)
+    assert dict(shifted.jumps) == {0: pytest.approx(0.1, rel=1e-9)}
+    assert whole.jumps == ()

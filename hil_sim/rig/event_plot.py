@@ -45,11 +45,13 @@ def draw_events(ax, report: Report) -> None:
             ax.axvspan(motion["start_s"], motion["start_s"] + motion["duration_s"], color=_OUT,
                        alpha=0.25, lw=0, label="cam-out (to a stop)")
             ax.axvline(motion["start_s"], color=_OUT, lw=1.0)
+    handles = []
     if "phase_shift" in s:
+        # on a second axis whose ticks sit inside: the panel is the figure's right edge
         twin = ax.twinx()
-        twin.plot(time_s, s["phase_shift"], color=_PHASE, lw=1.0, label="phase shift")
-        twin.set_ylabel(f"phase shift [{units.get('master', '')}]", fontsize=8.5, color=_PHASE)
-        twin.tick_params(labelsize=8, colors=_PHASE)
+        handles = twin.plot(time_s, s["phase_shift"], color=_PHASE, lw=1.0,
+                            label=f"phase shift [{units.get('master', '')}], right axis")
+        twin.tick_params(labelsize=8, colors=_PHASE, direction="in", pad=-22)
     ax.set_title("events: " + ("a switch jumps" if jumped else "every switch continuous"),
                  loc="left", fontsize=9, color=_LIMIT if jumped else _PASSED)
     ax.set_xlabel("time [s]", fontsize=8.5)
@@ -57,4 +59,6 @@ def draw_events(ax, report: Report) -> None:
     ax.set_xlim(0.0, float(time_s[-1]) if time_s.size else 1.0)
     ax.tick_params(labelsize=8)
     ax.grid(True, color=_GRID, lw=0.5)
-    ax.legend(loc="lower left", fontsize=7.5, framealpha=0.85)
+    lines, labels = ax.get_legend_handles_labels()
+    ax.legend(lines + handles, labels + [h.get_label() for h in handles], loc="lower left",
+              fontsize=7.5, framealpha=0.85)

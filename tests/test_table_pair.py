@@ -495,3 +495,36 @@ def test_firmware_emit_writes_the_switch_and_it_builds_from_there(tmp_path, caps
     build = subprocess.run([cc, *STRICT, "-c", "-o", str(tmp_path / "pair.o"), str(tmp_path / "ecam_table_pair.c")],
                            capture_output=True, text=True)  # fmt: skip
     assert build.returncode == 0 and build.stderr == "", build.stderr
+
+
+@pytest.mark.parametrize("running,pending", [(DRRD, SINE), (KNIFE, KNIFE_Q), (SINE, TINY)])
+def test_the_virtual_drive_queued_switch_is_the_firmware_switch_going_forwards(pool, running, pending):
+    """The rig's drive-side cam slot (hil_sim/drive/cam_slot.py: 0x2001:01 = 3 queues the pending
+    table, 0x2001:05 its PLCopen placement) commands, cycle by cycle, the positions SwitchPair
+    (and so ecam_table_pair.c) computes, in every mode, for a master moving forwards across the
+    period ends (int32 targets compared modulo 2^32, as the drive's position rolls over)."""
+    from hil_sim.drive.cam_slot import (CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_PERIOD_END, CAM_MODE_DRIVE_SIDE,
+                                        CamSlot)
+    from hil_sim.drive.objects import CAM_MODE, CAM_STATUS, CAM_SWITCH_MODE, MASTER_POSITION
+    from hil_sim.int32 import wrap_int32
+
+    blobs, tables = pool
+    rng = np.random.default_rng(running * 10 + pending)
+    period = tables[running].master_counts
+    masters = np.cumsum(rng.integers(0, period // 7 + 2, 120)).tolist()
+    for mode in range(4):
+        slot = CamSlot({CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: mode})
+        slot.verify_download(blobs[running])
+        slot.write_command(CAM_COMMAND_ACTIVATE)
+        slot.write_mode(CAM_MODE_DRIVE_SIDE)
+        pair = SwitchPair()
+        pair.engage(tables[running])
+        for k, master in enumerate(masters):
+            if k == 20:
+                slot.verify_download(blobs[pending])
+                slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+                pair.arm_mode(tables[pending], mode)
+            slot.values[MASTER_POSITION] = wrap_int32(master)
+            target, _ = slot.target(0.001)
+            assert wrap_int32(target) == pair.step(master).position, (mode, k, master)
+        assert pair.switches == 1 and pair.boundary == (masters[19] // period + 1) * period

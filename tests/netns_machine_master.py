@@ -13,7 +13,6 @@ streams each its own ramp (one +20, the other -30 counts per SYNC), reads back b
 TPDO, stops both by NMT and the drive process by SIGTERM.
 """
 
-import signal
 import subprocess
 import sys
 import threading
@@ -23,21 +22,12 @@ import canopen
 from canopen.profiles.p402 import BaseNode402
 
 from hil_sim.drive import EDS_PATH
+# The single-node master's helpers (this directory is on sys.path when the script runs).
+from netns_master import _map_with, report_exit, step, stop_drive
 
 CSP = "CYCLIC SYNCHRONOUS POSITION"
 SYNC_PERIOD_S = 0.002
 STEPS = 200
-
-
-def step(text):
-    print(f"step: {text}", flush=True)
-
-
-def _map_with(maps, index):
-    for pdo_map in maps.values():
-        if any(var.index == index for var in pdo_map.map):
-            return pdo_map
-    raise LookupError(f"no RPDO maps 0x{index:04X}")
 
 
 def main(ids: list[int]) -> int:
@@ -99,17 +89,10 @@ def main(ids: list[int]) -> int:
             node.nmt.state = "STOPPED"
     finally:
         network.disconnect()
-        drive.send_signal(signal.SIGTERM)
-        try:
-            out, _ = drive.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            drive.kill()
-            out, _ = drive.communicate()
-            print("drive did not stop on SIGTERM", flush=True)
+        out = stop_drive(drive)
+        if out is None:
             return 1
-    step(f"drive exit {drive.returncode}: {out.strip().splitlines()[-1] if out.strip() else ''}")
-    print("ok" if drive.returncode == 0 else "drive failed", flush=True)
-    return drive.returncode
+    return report_exit(drive, out)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,25 @@ def step(text):
     print(f"step: {text}", flush=True)
 
 
+def stop_drive(drive) -> str | None:
+    """SIGTERM to the drive process and its output; None (said) when it did not stop."""
+    drive.send_signal(signal.SIGTERM)
+    try:
+        return drive.communicate(timeout=10)[0]
+    except subprocess.TimeoutExpired:
+        drive.kill()
+        drive.communicate()
+        print("drive did not stop on SIGTERM", flush=True)
+        return None
+
+
+def report_exit(drive, out: str) -> int:
+    """The stopped drive's exit status and last line; the status is the script's."""
+    step(f"drive exit {drive.returncode}: {out.strip().splitlines()[-1] if out.strip() else ''}")
+    print("ok" if drive.returncode == 0 else "drive failed", flush=True)
+    return drive.returncode
+
+
 def master_filters(node_id: int) -> list[dict]:
     """What a master on plain udp_multicast receives: the drive's EMCY, TPDOs, SDO responses and
     heartbeat, never the COB-IDs it sends itself (NMT, SYNC, RPDOs, SDO requests)."""
@@ -101,17 +120,10 @@ def main(node_id: int, interface: str = "ecam_udp") -> int:
         step(f"nmt {reported} by heartbeat, no TPDO since")
     finally:
         network.disconnect()
-        drive.send_signal(signal.SIGTERM)
-        try:
-            out, _ = drive.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            drive.kill()
-            out, _ = drive.communicate()
-            print("drive did not stop on SIGTERM", flush=True)
+        out = stop_drive(drive)
+        if out is None:
             return 1
-    step(f"drive exit {drive.returncode}: {out.strip().splitlines()[-1] if out.strip() else ''}")
-    print("ok" if drive.returncode == 0 else "drive failed", flush=True)
-    return drive.returncode
+    return report_exit(drive, out)
 
 
 def configure_tpdo2(node) -> None:

@@ -7,7 +7,6 @@ fails."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 
@@ -16,6 +15,8 @@ from hil_sim.machine import Machine
 from hil_sim.rig.machine_plot import plot_machine
 from hil_sim.rig.machine_run import run_machine
 from hil_sim.rig.machine_search import find_machine_max_speed
+
+from .report_output import print_report
 
 
 def machine_command(args: argparse.Namespace, machine: Machine, write_reports=None,
@@ -35,15 +36,7 @@ def machine_command(args: argparse.Namespace, machine: Machine, write_reports=No
     if args.find_max_speed:
         search = find_machine_max_speed(machine, progress=lambda line: print(
             line, file=sys.stderr, flush=True))
-    if args.json:
-        out = report.to_dict(timing=args.timing)
-        if search is not None:
-            out["max_speed"] = search
-        print(json.dumps(out, indent=2, sort_keys=True, allow_nan=False))
-    else:
-        sys.stdout.write(report.to_text())
-        if search is not None and format_search is not None:
-            sys.stdout.write(format_search(search))
+    print_report(args, report, search, format_search)
     if args.plot:
         written = plot_machine(report, args.plot)
         print(f"plots: {written[0]} (the machine), {', '.join(str(p) for p in written[1:])} "

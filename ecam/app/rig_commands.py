@@ -4,7 +4,6 @@ Exit status: 0 when every scene passes, 1 when a check fails, 2 on bad input."""
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -20,6 +19,7 @@ from .machine_html import sim_page
 from .junit import junit_xml
 from .machine_command import machine_command
 from .multi import exit_status, run_scenes, scene_files, summary_table
+from .report_output import print_report
 
 
 def run_sim(args: argparse.Namespace) -> int:
@@ -95,17 +95,9 @@ def sim_command(args: argparse.Namespace) -> int:
     if args.find_max_speed:
         search = find_max_speed(scene, progress=lambda line: print(line, file=sys.stderr,
                                                                    flush=True))
-    if args.json:
-        out = report.to_dict(timing=args.timing)
-        if search is not None:
-            out["max_speed"] = search
-        print(json.dumps(out, indent=2, sort_keys=True, allow_nan=False))
-    else:
-        sys.stdout.write(report.to_text())
-        if search is not None:
-            sys.stdout.write(format_search(search))
-        if args.plot:
-            print(f"plots: {args.plot}, {bode_path(args.plot)} (the open loops)")
+    print_report(args, report, search, format_search)
+    if args.plot and not args.json:
+        print(f"plots: {args.plot}, {bode_path(args.plot)} (the open loops)")
     if getattr(args, "junit", None) or getattr(args, "html", None):
         _write_reports(args, [(Path(path), report, seconds)], sys.stderr if args.json else sys.stdout,
                        inputs)

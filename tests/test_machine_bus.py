@@ -35,6 +35,25 @@ NODE = 1
 _channels = itertools.count()
 
 
+def test_a_frame_reaches_every_other_node_once_with_its_content_and_not_its_sender():
+    import can
+
+    channel = f"bus-delivery-{next(_channels)}"
+    sender, *nodes = [open_virtual_bus(channel) for _ in range(4)]
+    try:
+        frame = can.Message(arbitration_id=0x181, data=bytes(range(7)), is_extended_id=False,
+                            timestamp=1.25)
+        sender.send(frame)
+        got = [node.recv(0) for node in nodes]
+        assert [(m.arbitration_id, bytes(m.data), m.dlc, m.timestamp, m.is_rx) for m in got] == \
+            [(0x181, bytes(range(7)), 7, 1.25, True)] * 3
+        assert all(node.recv(0) is None for node in nodes)  # once each
+        assert sender.recv(0) is None  # receive_own_messages is off
+    finally:
+        for bus in (sender, *nodes):
+            bus.shutdown()
+
+
 def test_the_frame_lengths_the_figures_below_use():
     assert [frame_bits(n) for n in (0, 1, 4, 6, 7, 8)] == [55, 65, 95, 115, 125, 135]
 

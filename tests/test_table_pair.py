@@ -497,12 +497,15 @@ def test_firmware_emit_writes_the_switch_and_it_builds_from_there(tmp_path, caps
     assert build.returncode == 0 and build.stderr == "", build.stderr
 
 
-@pytest.mark.parametrize("running,pending", [(DRRD, SINE), (KNIFE, KNIFE_Q), (SINE, TINY)])
-def test_the_virtual_drive_queued_switch_is_the_firmware_switch_going_forwards(pool, running, pending):
+@pytest.mark.parametrize("running,pending", [(DRRD, SINE), (KNIFE, KNIFE_Q), (SINE, TINY), (SINGLE, SINE)])
+def test_the_virtual_drive_queued_switch_is_the_firmware_switch_both_ways(pool, running, pending):
     """The rig's drive-side cam slot (hil_sim/drive/cam_slot.py: 0x2001:01 = 3 queues the pending
     table, 0x2001:05 its PLCopen placement) commands, cycle by cycle, the positions SwitchPair
-    (and so ecam_table_pair.c) computes, in every mode, for a master moving forwards across the
-    period ends (int32 targets compared modulo 2^32, as the drive's position rolls over)."""
+    (and so ecam_table_pair.c) computes, in every mode, for a master that moves forwards across
+    a switch and then backwards across another (armed on the way back, to the first table where
+    it repeats), with jumps of up to a seventh of a period (int32 targets compared modulo 2^32,
+    as the drive's position rolls over). The table that does not repeat (SINGLE) has ended when
+    the switch is armed: the pending table takes over at the next cycle's master."""
     from hil_sim.drive.cam_slot import (CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_PERIOD_END, CAM_MODE_DRIVE_SIDE,
                                         CamSlot)
     from hil_sim.drive.objects import CAM_MODE, CAM_STATUS, CAM_SWITCH_MODE, MASTER_POSITION
@@ -510,8 +513,10 @@ def test_the_virtual_drive_queued_switch_is_the_firmware_switch_going_forwards(p
 
     blobs, tables = pool
     rng = np.random.default_rng(running * 10 + pending)
-    period = tables[running].master_counts
-    masters = np.cumsum(rng.integers(0, period // 7 + 2, 120)).tolist()
+    back = running if tables[running].periodic else pending
+    steps = np.concatenate([rng.integers(0, tables[running].master_counts // 7 + 2, 60),
+                            -rng.integers(0, tables[back].master_counts // 7 + 2, 60)])  # forwards, backwards
+    masters = np.cumsum(steps).tolist()
     for mode in range(4):
         slot = CamSlot({CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: mode})
         slot.verify_download(blobs[running])
@@ -519,12 +524,18 @@ def test_the_virtual_drive_queued_switch_is_the_firmware_switch_going_forwards(p
         slot.write_mode(CAM_MODE_DRIVE_SIDE)
         pair = SwitchPair()
         pair.engage(tables[running])
+        switched = []
         for k, master in enumerate(masters):
-            if k == 20:
-                slot.verify_download(blobs[pending])
-                slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
-                pair.arm_mode(tables[pending], mode)
+            for at, table in ((20, pending), (70, back)):
+                if k == at:
+                    slot.verify_download(blobs[table])
+                    slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+                    pair.arm_mode(tables[table], mode)
             slot.values[MASTER_POSITION] = wrap_int32(master)
             target, _ = slot.target(0.001)
-            assert wrap_int32(target) == pair.step(master).position, (mode, k, master)
-        assert pair.switches == 1 and pair.boundary == (masters[19] // period + 1) * period
+            sample = pair.step(master)
+            assert wrap_int32(target) == sample.position, (mode, k, master)
+            if sample.switched:
+                switched.append(k)
+        assert pair.switches == 2 and 20 <= switched[0] < 60 <= 70 <= switched[1], switched
+        assert masters[switched[1]] < masters[switched[1] - 1]  # the second one going backwards

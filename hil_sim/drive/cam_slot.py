@@ -4,10 +4,16 @@
 With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003.
 
 A queued switch (issue 23): writing 3 to 0x2001:01 arms the pending table to take over where the
-running table's period ends (the first multiple of its master counts past the master position,
-from its master origin; a table that does not repeat: its end), as a controller's queued
-``MC_CamTableSelect`` does (CODESYS places the new cam "exactly at the end of the previous one";
-Rockwell's pending cam takes effect when the master passes the profile's end). 0x2001:02 shows
+master leaves the running table's period, as a controller's queued ``MC_CamTableSelect`` does
+(CODESYS places the new cam "exactly at the end of the previous one"; Rockwell's pending cam takes
+effect when the master passes the profile's end; TwinCAT MC3 ``ECamActivationMode.AtBoundary``:
+"when either the start or end of the cam table is crossed"). The rule is the firmware's,
+:class:`ecam.table_pair.SwitchPair` (``ecam_table_pair.c``), in both directions of master travel:
+the period is the one holding the master of the last cycle before the command; going forwards the
+pending table takes over at the boundary count itself, going backwards at the count below it,
+placed at the boundary either way; a jump over several periods switches at the first boundary; a
+table that does not repeat has one period, its master range, and armed after the master left it
+the pending table takes over at the next cycle's master. 0x2001:02 shows
 :data:`CAM_STATUS_QUEUED` until then. 0x2001:05 places the table then activated (by 1 or 3) as
 PLCopen's ``MasterAbsolute`` / ``SlaveAbsolute`` do: bit 0 master relative (its master 0 at the
 activation's master position: the period end, or the master of the cycle for 1), bit 1 slave
@@ -112,9 +118,10 @@ class CamSlot:
         # Where the active table sits (0x2001:05): its master 0 and the slave added [counts].
         self.master_origin = 0
         self.slave_base = 0
-        # A queued switch: the master position [counts] where it happens (None: at the next
-        # cycle's, computed then); False: none queued.
-        self.queued: int | None | bool = False
+        # A queued switch (SwitchPair's window): (window, ended) of the running table at the
+        # master of the last cycle before the command [table counts] (None: no cycle yet, the
+        # next one sets it); False: none queued.
+        self.queued: tuple | None | bool = False
 
     def reset(self) -> None:
         """Power-on: no table, none pending (a verification in progress is forgotten)."""
@@ -214,7 +221,9 @@ class CamSlot:
         elif command == CAM_COMMAND_ACTIVATE_AT_PERIOD_END:
             if self.pending_table is None or self.active_table is None:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
-            self.queued = None  # its master position from the next cycle's master
+            # the running period: the one holding the master of the last cycle (SwitchPair's
+            # window at the arming); no cycle yet: the next one's, and it cannot switch
+            self.queued = self._window(self.master_observer[0]) if self.observing else None
             values[CAM_STATUS] |= CAM_STATUS_QUEUED
         elif command == CAM_COMMAND_DISCARD:  # a verification in progress too
             self._generation += 1
@@ -253,13 +262,15 @@ class CamSlot:
         """The active table at ``master`` [counts], from its origin (target without the base)."""
         return self.active_table.lookup(master - self.master_origin, with_slope=True)
 
-    def _period_end(self, master: int) -> int:
-        """The running table's first period end past ``master`` [counts]; a table that does not
-        repeat: its end."""
-        counts = self.active_table.master_counts
-        if not self.active_table.periodic:
-            return self.master_origin + counts
-        return self.master_origin + ((master - self.master_origin) // counts + 1) * counts
+    def _window(self, master: int) -> tuple[int, bool]:
+        """The running table's period holding ``master`` [counts]: its start in the table's
+        counts (0 for a table that does not repeat: its master range) and whether the master is
+        outside it (the profile ended); SwitchPair's ``_window`` and ``_outside``."""
+        table = self.active_table
+        local = master - self.master_origin
+        if not table.periodic:
+            return 0, not 0 <= local < table.master_counts
+        return local - local % table.master_counts, False
 
     def write_mode(self, mode: int) -> None:
         """0x2004: targets from the controller or from the cam; the cam needs an active table."""
@@ -305,14 +316,21 @@ class CamSlot:
         return target + self.slave_base, velocity
 
     def _switch_at_period_end(self, master: int) -> None:
-        """A queued switch: its master position fixed at the first cycle after the command, and
-        the pending table active from the cycle whose master reaches it."""
-        if self.queued is None:
-            self.queued = self._period_end(master - 1)  # a master standing on an end takes it
-        end = self.queued
-        if master >= end:
-            self._place(end, self.slave_base + self._lookup(end)[0])
-            self._activate()
+        """A queued switch: the pending table takes over in the cycle whose master leaves the
+        running period, placed at the boundary crossed (SwitchPair.step and _cross)."""
+        if self.queued is None:  # the first cycle since the command sets the period
+            self.queued = self._window(master)
+            return
+        window, ended = self.queued
+        local = master - self.master_origin
+        if ended:  # armed after the profile ended: at this cycle's master
+            boundary = local
+        elif 0 <= local - window < self.active_table.master_counts:
+            return
+        else:  # forwards the period's end, backwards its start (each period owns its start)
+            boundary = window + self.active_table.master_counts if local >= window else window
+        self._place(boundary + self.master_origin, self.slave_base + self.active_table.lookup(boundary))
+        self._activate()
 
 
 def _observe(observer: tuple, master: int, cycle_s: float) -> tuple:

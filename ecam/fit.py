@@ -644,7 +644,13 @@ class _System:
         except _Singular:
             return math.inf
         n = self.u.size
-        return n * float(np.sum(self.w * residual**2)) / max(n - self.trace(lam), 1e-12) ** 2
+        dof = n - self.trace(lam)
+        # GCV needs a residual degree of freedom: below one, as the fit nears interpolation (knots
+        # at the points), n - tr H and the residuals are rounding noise (tr H carries about 1e-4
+        # of error near n) and their ratio picks an interpolant of the noise.
+        if dof < 1.0:
+            return math.inf
+        return n * float(np.sum(self.w * residual**2)) / dof**2
 
     def gcv(self, refine: int = 16):
         """The lambda of least GCV score: every decade, then golden-section search around the best."""

@@ -95,6 +95,27 @@ def test_noisy_measurements_of_a_modified_sine_recover_its_peak_acceleration():
     assert result.certificate["peaks"]["acceleration"]["points"] > 10 * law_peak
 
 
+@pytest.mark.parametrize("seed", [0, 3])
+def test_gcv_smooths_noisy_points_that_are_not_periodic_instead_of_interpolating_them(seed):
+    # Knots at the points (181 <= 600): as the fit nears interpolation, tr H nears n and the GCV
+    # score's numerator and denominator become rounding noise; it once picked lambda ~ 1e-12 (181
+    # effective parameters, the noise interpolated). scipy's make_smoothing_spline (GCV, cubic) is
+    # the peer: its error against the law is about 0.2-0.3 sigma here.
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, SPAN, 181)
+    sigma = 1e-3 * STROKE
+    y = rise_return(x) + sigma * rng.standard_normal(x.size)
+    result = fit_points(x, y)
+    assert result.smoothing == "gcv"
+    assert result.certificate["effective_parameters"] < x.size / 4
+    assert 0.7 * sigma < result.rms_deviation < 1.3 * sigma  # it leaves the noise in the residuals
+    grid = np.linspace(0.0, SPAN, 5001)
+    error = np.sqrt(np.mean((result.profile(grid) - rise_return(grid)) ** 2))
+    cubic = np.sqrt(np.mean((make_smoothing_spline(x, y)(grid) - rise_return(grid)) ** 2))
+    assert error < 0.5 * sigma
+    assert error < 1.25 * cubic
+
+
 def test_the_quintic_beats_scipys_cubic_in_continuity_and_never_loses_in_deviation():
     x, y = noisy()
     ours = fit_points(x, y, periodic=True)

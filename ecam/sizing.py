@@ -19,8 +19,10 @@ its speed (the voltage limit included); the maximum speed.
   one DC link, its constants computed once, for a controller's torque clamp;
 * :func:`current_for_torque`, :func:`torque_for_current`: the motor's torque-current relation
   (catalogue points: a servo motor saturates above its stall current);
-* :func:`dc_link_energy`, :func:`regenerated_energy`: what the DC link absorbs between its
-  nominal and its brake-chopper voltage, and the energy a braking duty puts into it;
+* :func:`dc_link_energy`, :func:`regenerated_energy`, :func:`dc_link_stored_energy`: what the DC
+  link absorbs between its nominal and its brake-chopper voltage, and the energy a braking duty
+  puts into it, a regenerative infeed returning braking power to the line up to its rating;
+* :func:`infeed_power`: the power the infeed carries (drawn, returned) for a shaft power;
 * :func:`series_stiffness`, :func:`stiffness_at_output`, :func:`arcmin_stiffness`: springs in
   series through a gear, the gearhead's catalogue unit;
 * :func:`two_mass_frequency_with_gearhead`: the torsional frequency with gearhead and motor
@@ -51,6 +53,8 @@ __all__ = [
     "torque_for_current",
     "dc_link_energy",
     "regenerated_energy",
+    "dc_link_stored_energy",
+    "infeed_power",
     "series_stiffness",
     "stiffness_at_output",
     "arcmin_stiffness",
@@ -357,14 +361,17 @@ def dc_link_energy(capacitance: float, nominal_voltage: float, limit_voltage: fl
     return 0.5 * c * (u1 * u1 - u0 * u0)
 
 
-def regenerated_energy(power, dt: float, capacity: float = math.inf,
-                       brake_power: float = 0.0, periodic: bool = True) -> float:
-    """The most energy a braking duty stores in the DC link at once [J].
+def dc_link_stored_energy(power, dt: float, capacity: float = math.inf,
+                          brake_power: float = 0.0, line_power: float = 0.0,
+                          periodic: bool = True) -> np.ndarray:
+    """The energy braking stores in the DC link above its nominal voltage, sample by sample [J].
 
-    The shaft power ``power`` (positive: motoring) returns -power to the link while braking;
-    motoring draws the link back down to its nominal voltage first (the infeed supplies only
-    below it), so the stored energy never falls below 0. A brake resistor of ``brake_power``
-    takes what exceeds ``capacity`` (it switches in at the chopper threshold).
+    The shaft power ``power`` (positive: motoring) returns -power to the link while braking.
+    A regenerative infeed returns up to ``line_power`` to the line whenever the link is above
+    its nominal voltage (it regulates the voltage back down); motoring draws the link down to
+    its nominal voltage first (the infeed supplies only below it), so the stored energy never
+    falls below 0. A brake resistor of ``brake_power`` takes what exceeds ``capacity`` (it
+    switches in at the chopper threshold).
 
     Parameters
     ----------
@@ -376,33 +383,79 @@ def regenerated_energy(power, dt: float, capacity: float = math.inf,
         What the DC link absorbs before the chopper switches in [J] (:func:`dc_link_energy`).
     brake_power : float
         Continuous power of the brake resistor [W], >= 0 (0: none).
+    line_power : float
+        The most power the infeed returns to the line at any instant [W], >= 0 (0: a rectifier
+        infeed, which returns nothing).
     periodic : bool
-        True: the duty repeats (run twice, the second pass reported).
+        True: the duty repeats (run twice, the second pass returned).
 
     Returns
     -------
-    float
-        The largest stored energy [J]; above ``capacity`` the link would trip on overvoltage.
+    numpy.ndarray, shape (n,)
+        The stored energy after each sample [J]; above ``capacity`` the link would trip on
+        overvoltage.
 
     Notes
     -----
-    Losses in the winding and the inverter are left out: they take energy from the braking,
-    so the value is on the safe side.
+    Losses in the winding, the inverter and the infeed are left out: they take energy from the
+    braking, so the values are on the safe side.
     """
     p = _array("power", power).ravel()
     dt = positive("dt", dt)
     if capacity != math.inf:  # no limit: the largest stored energy is all there is to say
         capacity = number("capacity", capacity, minimum=0.0)
     brake = number("brake_power", brake_power, minimum=0.0)
-    stored, peak = 0.0, 0.0
+    line = number("line_power", line_power, minimum=0.0) * dt
+    stored = 0.0
+    out = [0.0] * p.size
     for _ in range(2 if periodic else 1):
-        for value in (-p * dt).tolist():
-            stored = max(0.0, stored + value)
+        for i, value in enumerate((-p * dt).tolist()):
+            stored = max(0.0, stored + value - line)
             if stored > capacity and brake > 0.0:
                 stored = max(capacity, stored - brake * dt)
-            if stored > peak:
-                peak = stored
-    return peak
+            out[i] = stored
+    return np.array(out)
+
+
+def regenerated_energy(power, dt: float, capacity: float = math.inf,
+                       brake_power: float = 0.0, periodic: bool = True,
+                       line_power: float = 0.0) -> float:
+    """The most energy a braking duty stores in the DC link at once [J]: the largest of
+    :func:`dc_link_stored_energy` (the same parameters), 0 for an empty duty.
+
+    Returns
+    -------
+    float
+        The largest stored energy [J]; above ``capacity`` the link would trip on overvoltage.
+    """
+    stored = dc_link_stored_energy(power, dt, capacity, brake_power, line_power, periodic)
+    return float(stored.max()) if stored.size else 0.0
+
+
+def infeed_power(power, regenerative_power: float = 0.0) -> np.ndarray | float:
+    """The power an infeed carries for a shaft power [W]: positive drawn from the line,
+    negative returned to it.
+
+    Motoring power is drawn from the line (the DC link's store is left out: the safe side for
+    the infeed's rating); braking power is returned up to ``regenerative_power`` (the rest stays
+    in the DC link, :func:`dc_link_stored_energy`), none by a rectifier infeed (0).
+
+    Parameters
+    ----------
+    power : float or array_like
+        Shaft power [W], positive when motoring.
+    regenerative_power : float
+        The most power the infeed returns to the line [W], >= 0.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ``max(power, -regenerative_power)`` [W].
+    """
+    p = _array("power", power)
+    limit = number("regenerative_power", regenerative_power, minimum=0.0)
+    value = np.maximum(p, -limit)
+    return float(value) if value.ndim == 0 else value
 
 
 def series_stiffness(*stiffnesses) -> float:

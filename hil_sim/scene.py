@@ -61,7 +61,8 @@ Layout (units in the names or below; SI unless said otherwise)::
     [motor]
     model = "1FT7044-AK7"              # stall_torque, rated_torque, rated_speed_rpm, ...
     # [drive]: module = "...", rated_current, peak_current, dc_bus_voltage,
-    #          dc_link_capacitance, brake_chopper_voltage, brake_resistor_power
+    #          dc_link_capacitance, brake_chopper_voltage, brake_resistor_power,
+    #          line_module = "...", infeed, infeed_power, infeed_peak_power
     # [mechanics]: gearhead = "...", gearhead_stiffness, gearhead_input_inertia,
     #          gearhead_idle_torque, gearhead_acceleration_torque, gearhead_emergency_torque,
     #          gearhead_max_input_speed_rpm, gearhead_shock_factor

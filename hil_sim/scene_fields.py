@@ -20,6 +20,7 @@ from hil_sim.effects import (DEFAULT_BACKLASH_ARCMIN, DEFAULT_CURRENT_LOOP_HZ, D
 from hil_sim.event_spec import ACTIONS, ACTIVATIONS, MAX_EVENT_POSITION, MAX_EVENTS, SCALING_RANGE
 from hil_sim.faults import FRAME_KINDS, MAX_SYNC_JITTER_S
 from hil_sim.sync_schedule import MASTER_POSITION_PDOS, MAX_SYNC_COUNTER_OVERFLOW, MAX_TRANSMISSION_TYPE
+from hil_sim.sizing_spec import INFEEDS
 from hil_sim.scene import (CAM_MODES, EFFECT_RANGES, MAX_BANDWIDTH_HZ, MAX_CYCLES, MAX_LEAD_CYCLES,
                            MAX_MASTER_SPEED, MAX_SETTLE_S, MECHANICS_MINIMA, MECHANICS_RANGES, MIN_LOAD_INERTIA,
                            MIN_MASTER_SPEED, PROFILES, SLAVE_UNITS_PER_RADIAN_RANGE)
@@ -217,6 +218,23 @@ _SIZING_FIELDS = (
             maximum=1e5, limits="> dc_bus_voltage"),
     _sizing("drive", "brake_resistor_power", "The brake resistor's continuous power; 0: none.",
             "W", zero=True, maximum=1e8, default_text="the catalogue's, else 0 (none)"),
+    Field("drive", "line_module", "string", "An infeed (line module) of the catalogue: its "
+          "fields are the defaults of the infeed ones below.", default_text="none",
+          source=_SIZING),
+    Field("drive", "infeed", "choice", "The infeed's kind: regenerative returns braking power "
+          "to the line up to infeed_peak_power (the DC link and the brake resistor take only "
+          "the excess); rectifier returns none. Without it the regeneration check takes the DC "
+          "link alone and infeed_power is not rated.", choices=INFEEDS,
+          default_text="the line module's, else none", limits="with infeed_power",
+          when=(("drive.infeed_power", 16000.0),), source=_SIZING),
+    _sizing("drive", "infeed_power", "The infeed's rated power P_n, drawn or returned: the "
+            "infeed_power check's limit for the cycle's RMS power.", "W", maximum=1e8,
+            limits="with infeed", when=(("drive.infeed", "regenerative"),)),
+    _sizing("drive", "infeed_peak_power", "The infeed's peak power: the most it returns at "
+            "once, and the infeed_power check's limit for the cycle's peak.", "W",
+            maximum=1e8, default_text="the line module's, else infeed_power",
+            limits=">= infeed_power", when=(("drive.infeed", "regenerative"),
+                                             ("drive.infeed_power", 1.0))),
     Field("mechanics", "gearhead", "string", "A gearhead of the catalogue: its fields are the "
           "defaults of the gearhead_* ones, its ratio and efficiency those of gear_ratio and "
           "gear_efficiency.", default_text="none", limits="gear_ratio, if given, is its ratio",

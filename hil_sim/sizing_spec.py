@@ -1,7 +1,7 @@
-"""The drive train a scene sizes: its motor (``[motor]``), its drive module (the sizing fields of
-``[drive]``) and its gearhead (the ``gearhead*`` fields of ``[mechanics]``), read from the scene
-or from the catalogue file (:data:`CATALOGUE`, ``model`` / ``module`` / ``gearhead`` naming an
-entry; the scene's own fields override the entry's).
+"""The drive train a scene sizes: its motor (``[motor]``), its drive module and its infeed (the
+sizing fields of ``[drive]``) and its gearhead (the ``gearhead*`` fields of ``[mechanics]``),
+read from the scene or from the catalogue file (:data:`CATALOGUE`, ``model`` / ``module`` /
+``line_module`` / ``gearhead`` naming an entry; the scene's own fields override the entry's).
 
 What they change in the machine (:meth:`SizingSpec.fold`): the gearhead's input inertia is added
 to the motor side, its torsional stiffness and the motor shaft's are put in series with the
@@ -40,6 +40,10 @@ Layout (units: SI, rpm where the name says so)::
     dc_link_capacitance = 1.1e-4   # [F]; optional
     brake_chopper_voltage = 774.0  # [V]; optional
     brake_resistor_power = 0.0     # [W]; 0 = none
+    line_module = "6SL3130-7TE21-6AA4"  # the infeed, a catalogue entry (optional)
+    infeed = "regenerative"        # or "rectifier" (returns no braking energy to the line)
+    infeed_power = 16000.0         # [W] rated power P_n (drawn or returned)
+    infeed_peak_power = 16000.0    # [W] optional (default infeed_power)
 
     [mechanics]                    # besides the mechanics fields
     gearhead = "SP075-MF1-5"       # a catalogue entry (optional)
@@ -117,6 +121,28 @@ class ModuleData:
     source: str = ""
 
 
+#: The kinds of infeed: one that returns braking energy to the line (an Active Line Module),
+#: and a rectifier (a diode or a thyristor bridge, a Basic Line Module) that returns none.
+INFEEDS = ("regenerative", "rectifier")
+
+
+@dataclass(frozen=True)
+class InfeedData:
+    """The drive line-up's infeed (line module): its kind (:data:`INFEEDS`) and its rated and
+    peak power [W], drawn from the line or, where it regenerates, returned to it."""
+
+    kind: str
+    rated_power: float
+    peak_power: float
+    model: str = ""
+    source: str = ""
+
+    @property
+    def regenerative_power(self) -> float:
+        """The most power it returns to the line at any instant [W] (0: a rectifier)."""
+        return self.peak_power if self.kind == "regenerative" else 0.0
+
+
 @dataclass(frozen=True)
 class GearheadData:
     """A gearhead's catalogue data (stiffness at the output, inertia and idle torque at the
@@ -142,14 +168,16 @@ class SizingSpec:
     motor: MotorData | None = None
     module: ModuleData | None = None
     gearhead: GearheadData | None = None
+    infeed: InfeedData | None = None
     #: True when the scene gives ``mechanics.motor_torque_limit``: its clamp, not the drive
     #: train's (no voltage limit in the drive's clamp then)
     scene_clamp: bool = False
 
     @property
     def given(self) -> bool:
-        """True when the scene names a motor, a module or a gearhead."""
-        return any(part is not None for part in (self.motor, self.module, self.gearhead))
+        """True when the scene names a motor, a module, a gearhead or an infeed."""
+        return any(part is not None
+                   for part in (self.motor, self.module, self.gearhead, self.infeed))
 
     def torque_clamp(self) -> float | None:
         """The drive's torque limit from the motor and the module [N m]: the torque at the
@@ -207,8 +235,10 @@ class SizingSpec:
 
 MOTOR_FIELDS = tuple(f.name for f in fields(MotorData) if f.name not in ("model", "source"))
 MODULE_FIELDS = tuple(f.name for f in fields(ModuleData) if f.name not in ("model", "source"))
-#: The [drive] keys of the module (besides the drive's control fields).
-DRIVE_SIZING_KEYS = ("module", *MODULE_FIELDS)
+#: The [drive] keys of the infeed (its catalogue entry and the InfeedData fields).
+INFEED_KEYS = ("line_module", "infeed", "infeed_power", "infeed_peak_power")
+#: The [drive] keys of the module and the infeed (besides the drive's control fields).
+DRIVE_SIZING_KEYS = ("module", *MODULE_FIELDS, *INFEED_KEYS)
 _GEARHEAD_KEYS = {"gearhead_stiffness": "torsional_stiffness",
                   "gearhead_input_inertia": "input_inertia",
                   "gearhead_idle_torque": "idle_torque",
@@ -230,7 +260,8 @@ _MAX = {"stall_torque": 1e6, "rated_torque": 1e6, "rated_speed_rpm": 1e6, "max_t
         "dc_bus_voltage": 1e5, "dc_link_capacitance": 1e3, "brake_chopper_voltage": 1e5,
         "brake_resistor_power": 1e8, "torsional_stiffness": 1e12, "input_inertia": 1e4,
         "idle_torque": 1e6, "acceleration_torque": 1e8, "emergency_stop_torque": 1e8,
-        "max_input_speed_rpm": 1e6, "shock_factor": 100.0}
+        "max_input_speed_rpm": 1e6, "shock_factor": 100.0, "infeed_power": 1e8,
+        "infeed_peak_power": 1e8}
 _MAY_BE_ZERO = {"winding_resistance", "inductance", "brake_resistor_power", "input_inertia",
                 "idle_torque"}
 
@@ -238,7 +269,8 @@ _catalogue_cache: dict | None = None
 
 
 def catalogue() -> dict:
-    """The catalogue file, parsed (``motor``, ``module``, ``gearhead`` tables by name)."""
+    """The catalogue file, parsed (``motor``, ``module``, ``gearhead``, ``line_module`` tables by
+    name)."""
     global _catalogue_cache
     if _catalogue_cache is None:
         with CATALOGUE.open("rb") as file:
@@ -322,8 +354,34 @@ def _points(raw: Fields, name: str, value) -> tuple:
     return tuple(points)
 
 
+def _infeed(drive: Fields) -> InfeedData | None:
+    if not any(key in drive for key in INFEED_KEYS):
+        return None
+    entry = _entry(drive, "line_module", "line_module")
+    kind = drive.raw.get("infeed", entry.get("infeed"))
+    if kind is None:
+        raise drive.error(f"{drive.name('infeed')}: missing should be one of "
+                          f"{', '.join(INFEEDS)} (with infeed_power)")
+    kind = Fields({"infeed": kind}, drive.where, drive.source).choice("infeed", INFEEDS)
+    values = {}
+    for name in ("infeed_power", "infeed_peak_power"):
+        given = drive.raw.get(name, entry.get(name))
+        if given is not None:
+            values[name] = _number(drive, name, given, name)
+    if "infeed_power" not in values:
+        raise drive.error(f"{drive.name('infeed_power')}: missing should be given with infeed "
+                          f"{kind!r} (the infeed's rated power, W)")
+    rated = values["infeed_power"]
+    peak = values.get("infeed_peak_power", rated)
+    if peak < rated:
+        raise drive.error(f"{drive.name('infeed_peak_power')}: {show(peak)} should be >= "
+                          f"infeed_power {show(rated)}")
+    return InfeedData(kind, rated, peak, model=entry.get("model", ""),
+                      source=entry.get("source", ""))
+
+
 def _module(drive: Fields) -> ModuleData | None:
-    if not any(key in drive for key in DRIVE_SIZING_KEYS):
+    if not any(key in drive for key in ("module", *MODULE_FIELDS)):
         return None
     entry = _entry(drive, "module", "module")
     values = {}
@@ -363,8 +421,8 @@ def _gearhead(mechanics: Fields) -> GearheadData | None:
 
 
 def parse_sizing(top: Fields) -> SizingSpec:
-    """The drive train of a scene (its ``[motor]``, and the sizing fields of ``[drive]`` and
-    ``[mechanics]``, whose other keys the scene reader checks).
+    """The drive train of a scene (its ``[motor]``, and the sizing fields of ``[drive]`` (module
+    and infeed) and ``[mechanics]``, whose other keys the scene reader checks).
 
     Raises
     ------
@@ -374,8 +432,9 @@ def parse_sizing(top: Fields) -> SizingSpec:
     """
     try:
         mechanics = top.table("mechanics")
-        return SizingSpec(motor=_motor(top), module=_module(top.table("drive")),
-                          gearhead=_gearhead(mechanics),
+        drive = top.table("drive")
+        return SizingSpec(motor=_motor(top), module=_module(drive),
+                          gearhead=_gearhead(mechanics), infeed=_infeed(drive),
                           scene_clamp="motor_torque_limit" in mechanics)
     except (OSError, tomllib.TOMLDecodeError) as exc:  # the catalogue itself, not the scene
         raise CamFileError(f"catalogue {CATALOGUE.name}: {exc}") from None

@@ -3,11 +3,13 @@ the cycle needs, what the part is rated for, and the utilisation in percent."""
 
 from __future__ import annotations
 
-COMPONENTS = ("motor", "module", "gearhead", "coupling", "brake_resistor")
+COMPONENTS = ("motor", "module", "gearhead", "coupling", "infeed", "brake_resistor")
 
 
 def _value(value) -> str:
-    return "n/a" if value is None else f"{value:.4g}"
+    if value is None:
+        return "n/a"
+    return value if isinstance(value, str) else f"{value:.4g}"
 
 
 def sizing_lines(sizing: dict | None) -> list[str]:

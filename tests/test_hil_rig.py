@@ -25,7 +25,8 @@ from hil_sim.sizing_spec import SizingSpec
 SCENES = Path(__file__).resolve().parent.parent / "hil_sim" / "scenes"
 # The sizing checks (issue 21) follow the drive's: without [motor] they are reported without limits.
 SIZING_CHECKS = ("motor_thermal", "motor_speed_torque", "motor_speed", "drive_current",
-                 "drive_peak_current", "regeneration", "inertia_ratio", "gearhead_torque")
+                 "drive_peak_current", "regeneration", "infeed_power", "inertia_ratio",
+                 "gearhead_torque")
 
 
 def scene(name, **changes):

@@ -186,10 +186,12 @@ def test_the_catalogue_carries_a_source_for_every_entry():
 # ------------------------------------------------------------------------- the scene's checks
 
 def _knife(speed: float | None = None, **tables):
-    """The knife's scene with some fields changed (``motor={...}``, ``drive={...}``, ...)."""
+    """The knife's scene with some fields changed (``motor={...}``, ``drive={...}``, ...; a
+    field set to None is taken out)."""
     data = tomllib.loads(KNIFE.read_text())
     for table, values in tables.items():
         data.setdefault(table, {}).update(values)
+        data[table] = {k: v for k, v in data[table].items() if v is not None}
     scene = parse_scene(data, base=KNIFE.parent, source="rotary_knife.toml")
     return scene if speed is None else scene.with_master_speed(speed)
 
@@ -241,13 +243,97 @@ def test_drive_currents_fail_on_a_small_module():
     assert scene.mechanics.build().motor_torque_limit == pytest.approx(2.0 * 5.0 / 5.7)
 
 
-def test_regeneration_fails_on_a_small_dc_link_and_a_resistor_takes_it():
-    small = {"dc_link_capacitance": 2e-6, "brake_chopper_voltage": 774.0}
+def test_regeneration_fails_on_a_small_dc_link_and_a_resistor_or_the_infeed_takes_it():
+    # a rectifier infeed returns nothing: the DC link alone takes the braking energy
+    small = {"dc_link_capacitance": 2e-6, "brake_chopper_voltage": 774.0, "infeed": "rectifier"}
     line = _checks(_knife(2000.0, drive=small))["regeneration"]
     assert line.limit == pytest.approx(0.5 * 2e-6 * (774.0**2 - 600.0**2))
     assert not line.passed, line.line()
     resistor = _checks(_knife(2000.0, drive={**small, "brake_resistor_power": 1e4}))
     assert resistor["regeneration"].passed
+    # the knife's Active Line Module returns it all: the braking peaks below its 16 kW
+    regenerative = _checks(_knife(2000.0, drive={**small, "infeed": "regenerative"}))
+    line = regenerative["regeneration"]
+    assert line.passed and line.value == 0.0 and "returns up to 16000 W" in line.detail
+
+
+def test_the_stand_in_dc_link_alone_would_limit_the_knife_below_its_motor():
+    """The DC link without the infeed (as the knife was rated before the Active Line Module):
+    the regeneration check fails at 1900 deg/s, where the motor's heat still passes; with the
+    infeed it passes there."""
+    rectifier = _checks(_knife(1900.0, drive={"infeed": "rectifier"}))
+    assert not rectifier["regeneration"].passed and rectifier["motor_thermal"].passed
+    assert _checks(_knife(1900.0))["regeneration"].passed
+
+
+def test_dc_link_energy_with_a_regenerative_infeed():
+    # 100 W braking for 0.5 s, then 200 W motoring for 0.5 s; the infeed returns 60 W: the
+    # link stores the other 40 W for 0.5 s = 20 J, then motoring and the infeed drain it
+    power = np.r_[np.full(500, -100.0), np.full(500, 200.0)]
+    stored = sizing.dc_link_stored_energy(power, 1e-3, line_power=60.0)
+    assert stored.max() == pytest.approx(20.0, rel=1e-9)
+    assert stored[-1] == 0.0
+    assert sizing.regenerated_energy(power, 1e-3, line_power=60.0) == pytest.approx(20.0)
+    # an infeed that returns 100 W or more leaves nothing in the link
+    assert sizing.regenerated_energy(power, 1e-3, line_power=100.0) == 0.0
+    # a 20 J link with a 40 W resistor and a 30 W infeed: 70 W charge it to 20 J in 2/7 s,
+    # then 100 - 30 - 40 = 30 W for the remaining 0.5 - 2/7 s
+    hand = 20.0 + 30.0 * (0.5 - 20.0 / 70.0)
+    assert sizing.regenerated_energy(power, 1e-3, 20.0, 40.0, line_power=30.0) == pytest.approx(
+        hand, rel=2e-3)
+    with pytest.raises(InputError, match="line_power"):
+        sizing.dc_link_stored_energy(power, 1e-3, line_power=-1.0)
+
+
+def test_power_through_the_infeed():
+    # motoring drawn in full; braking returned up to the infeed's power; none by a rectifier
+    assert sizing.infeed_power(500.0, 300.0) == 500.0
+    assert sizing.infeed_power(-200.0, 300.0) == -200.0
+    assert sizing.infeed_power(-500.0, 300.0) == -300.0
+    assert np.array_equal(sizing.infeed_power([-500.0, 100.0], 0.0), [0.0, 100.0])
+    with pytest.raises(InputError, match="regenerative_power"):
+        sizing.infeed_power(1.0, -1.0)
+
+
+def test_the_active_line_modules_rating_is_the_manuals():
+    """S120 Booksize Power Units manual (GH2) 04/2014, section 3.11, p. 144: S_K line >=
+    0.73 x 70 x P_n, "for 16 kW Active Line Module: S_K line = 0.82 MVA"."""
+    entry = catalogue()["line_module"]["6SL3130-7TE21-6AA4"]
+    assert entry["infeed"] == "regenerative"
+    assert 0.73 * 70.0 * entry["infeed_power"] == pytest.approx(0.82e6, abs=0.005e6)
+    # the 07/2016 edition's transformer row: S_n >= 1.27 P_n, 21 kVA
+    assert 1.27 * entry["infeed_power"] <= 21e3
+    assert "infeed_peak_power" not in entry  # not found: the rated power stands in
+    spec = _knife().sizing.infeed
+    assert spec.rated_power == spec.peak_power == spec.regenerative_power == 16e3
+
+
+def test_infeed_power_fails_on_a_small_infeed():
+    checks = _checks(_knife(2000.0, drive={"infeed_power": 500.0}))
+    line = checks["infeed_power"]
+    assert not line.passed and line.limit == 500.0 and "at master" in line.detail
+    # the value is the larger share: the cycle's peak power through the infeed (the shaft's
+    # motoring peak; braking is returned only up to 500 W) against the peak, here the rated
+    run, _ = prepare(_knife(2000.0))
+    duty = duty_cycle(run)
+    assert line.value == pytest.approx(float(np.max(np.abs(np.maximum(duty.power, -500.0)))))
+    assert checks["summary"]["components"]["infeed"]["utilisation_percent"] > 100.0
+    # the RMS counts where it is the larger share: a peak rating far above the rated power
+    rms = _checks(_knife(2000.0, drive={"infeed_power": 500.0, "infeed_peak_power": 1e6}))
+    assert rms["infeed_power"].limit == 500.0
+    assert rms["infeed_power"].value == pytest.approx(sizing.rms_torque(duty.power))
+
+
+def test_infeed_fields_are_checked_where_they_enter():
+    with pytest.raises(CamFileError, match=r"drive\.infeed_power: missing should be given"):
+        _knife(drive={"line_module": None, "infeed": "regenerative"})
+    with pytest.raises(CamFileError, match=r"drive\.infeed_peak_power: 100 should be >= "
+                                           r"infeed_power 16000"):
+        _knife(drive={"infeed_peak_power": 100.0})
+    with pytest.raises(CamFileError, match=r"drive\.infeed: .*regenerative"):
+        _knife(drive={"infeed": "solar"})
+    with pytest.raises(CamFileError, match=r"drive\.line_module: .*not in the catalogue"):
+        _knife(drive={"line_module": "6SL3130-0000"})
 
 
 def test_inertia_ratio_fails_above_the_scenes_limit():
@@ -299,17 +385,17 @@ def test_the_duty_is_the_cams_motion_through_the_gear():
 @pytest.mark.slow
 def test_the_knifes_maximum_speed_is_limited_by_its_drive_train():
     """Issue 21, item 5: the search stops at the first limit of any kind and names it; the
-    sized knife runs out of DC link (the braking energy, no brake resistor) just before its
-    motor runs out of S1 torque (1905 deg/s), and before its tracking or its clamp give up."""
+    sized knife, its braking energy returned to the line by its Active Line Module, runs out of
+    S1 torque before its DC link, its tracking or its clamp give up."""
     from hil_sim.rig import find_max_speed
 
     result = find_max_speed(load_scene(KNIFE))
-    assert result["confirmed"] and result["failed_checks"] == ["regeneration"]
-    assert result["limiting_check"].startswith("FAIL  regeneration:")
+    assert result["confirmed"] and result["failed_checks"] == ["motor_thermal"]
+    assert result["limiting_check"].startswith("FAIL  motor_thermal:")
     below = _checks(_knife(result["speed"]))
-    above = _checks(_knife(result["failing_speed"]))["regeneration"]
-    assert below["regeneration"].passed and not above.passed
-    assert below["motor_thermal"].passed  # the heat is not the limit yet
+    above = _checks(_knife(result["failing_speed"]))
+    assert below["motor_thermal"].passed and not above["motor_thermal"].passed
+    assert above["regeneration"].passed and above["infeed_power"].passed
 
 
 def test_the_summary_in_the_text_the_json_the_html_and_the_figure():
@@ -324,7 +410,8 @@ def test_the_summary_in_the_text_the_json_the_html_and_the_figure():
     assert "  motor 1FT7044-AK7: " in text and "  gearhead SP075-MF1-5: " in text
     data = knife.to_dict()
     parts = data["sizing"]["components"]
-    assert set(parts) == {"motor", "module", "gearhead", "coupling", "brake_resistor"}
+    assert set(parts) == {"motor", "module", "gearhead", "coupling", "infeed", "brake_resistor"}
+    assert "  infeed 6SL3130-7TE21-6AA4: " in text
     thermal = knife.check("motor_thermal")
     assert parts["motor"]["utilisation_percent"] >= 100.0 * thermal.ratio
     page = sizing_section(data)

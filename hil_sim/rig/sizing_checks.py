@@ -18,7 +18,10 @@ Checks (value, limit, margin and where, as every check of the report):
 * ``drive_current`` and ``drive_peak_current``: the module's RMS and peak current against its
   rated and peak current (through the motor's torque-current curve);
 * ``regeneration``: the most energy braking stores in the DC link at once against what it
-  absorbs between its nominal and its brake-chopper voltage, a brake resistor taking the rest;
+  absorbs between its nominal and its brake-chopper voltage, a regenerative infeed returning
+  braking power to the line up to its peak power first, a brake resistor taking the rest;
+* ``infeed_power``: the power through the infeed (drawn, and returned where it regenerates),
+  its RMS over the cycle against the rated power and its peak against the peak power;
 * ``inertia_ratio``: reflected load over motor-side inertia against ``limits.inertia_ratio``;
 * ``gearhead_torque``: the gearhead's peak output torque against its T2B at the duty's cycles
   per hour.
@@ -43,7 +46,8 @@ SAMPLES = 4096
 CURVE_POINTS = 121
 #: The sizing checks, in the report's order.
 NAMES = ("motor_thermal", "motor_speed_torque", "motor_speed", "drive_current",
-         "drive_peak_current", "regeneration", "inertia_ratio", "gearhead_torque")
+         "drive_peak_current", "regeneration", "infeed_power", "inertia_ratio",
+         "gearhead_torque")
 
 
 @dataclass(frozen=True)
@@ -211,9 +215,13 @@ def drive_current_checks(run: PreparedRun, duty: Duty) -> tuple[list[Check], dic
 
 
 def regeneration_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
-    """The most energy braking stores in the DC link against what it absorbs."""
-    module = run.scene.sizing.module
-    returned = float(np.sum(np.maximum(-duty.power, 0.0)) * duty.dt)
+    """The most energy braking stores in the DC link against what it absorbs, a regenerative
+    infeed returning braking power to the line up to its peak power first."""
+    spec = run.scene.sizing
+    module, infeed = spec.module, spec.infeed
+    braking = np.maximum(-duty.power, 0.0)
+    returned = float(np.sum(braking) * duty.dt)
+    line = infeed.regenerative_power if infeed is not None else 0.0
     capacity, brake = math.inf, 0.0
     rated = (module is not None and module.dc_link_capacitance is not None
              and module.dc_bus_voltage is not None and module.brake_chopper_voltage is not None)
@@ -221,19 +229,58 @@ def regeneration_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
         capacity = sizing.dc_link_energy(module.dc_link_capacitance, module.dc_bus_voltage,
                                          module.brake_chopper_voltage)
         brake = module.brake_resistor_power
-    stored = sizing.regenerated_energy(duty.power, duty.dt, capacity, brake)
-    facts = {"energy_returned_per_cycle": returned, "largest_stored_energy": stored,
+    stored = sizing.dc_link_stored_energy(duty.power, duty.dt, capacity, brake, line)
+    fullest = int(np.argmax(stored))
+    hardest = int(np.argmax(braking))
+    to_line = float(np.sum(np.minimum(braking, line)) * duty.dt)
+    facts = {"energy_returned_per_cycle": returned, "largest_stored_energy": float(stored[fullest]),
+             "peak_braking_power": float(braking[hardest]),
+             "energy_to_line_per_cycle": to_line,
              "dc_link_energy": capacity if rated else None,
              "brake_resistor_power": brake if rated else None}
+    # where: the fullest DC link, or (nothing stored: the infeed took it all) the hardest braking
+    where = _where(run, duty, fullest if stored[fullest] > 0.0 else hardest)
+    flow = (f"braking peaks at {braking[hardest]:.4g} W {_where(run, duty, hardest)}, "
+            f"{returned:.4g} J per cycle" if braking[hardest] > 0.0 else "no braking in the cycle")
+    if infeed is not None and line > 0.0:
+        flow += (f"; the {infeed.kind} infeed returns up to {line:g} W of it to the line "
+                 f"({to_line:.4g} J per cycle)")
+    elif infeed is not None:
+        flow += f"; the {infeed.kind} infeed returns none of it"
     if not rated:
-        return check("regeneration", stored, None, "J",
-                     f"{returned:.4g} J returned per cycle; no DC-link capacitance and chopper "
-                     "voltage in [drive]: not rated"), facts
+        return check("regeneration", float(stored[fullest]), None, "J",
+                     f"most energy stored at once {where}; {flow}; no DC-link capacitance and "
+                     "chopper voltage in [drive]: not rated"), facts
     what = (f"DC link {capacity:.4g} J between {module.dc_bus_voltage:g} and "
             f"{module.brake_chopper_voltage:g} V"
             + (f", brake resistor {brake:g} W above it" if brake else ", no brake resistor"))
-    return check("regeneration", stored, capacity, "J",
-                 f"most energy stored at once ({returned:.4g} J returned per cycle); {what}"), facts
+    return check("regeneration", float(stored[fullest]), capacity, "J",
+                 f"most energy stored at once {where}; {flow}; {what}"), facts
+
+
+def infeed_power_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
+    """The power through the infeed (drawn, and returned where it regenerates): its RMS over
+    the cycle against the rated power, its peak against the peak power; the larger share
+    counts."""
+    infeed = run.scene.sizing.infeed
+    # without an infeed in the scene, all the shaft power (the unrated figure)
+    line = (duty.power if infeed is None
+            else sizing.infeed_power(duty.power, infeed.regenerative_power))
+    rms = sizing.rms_torque(line)  # the RMS of any series: the infeed's current at its voltage
+    worst = int(np.argmax(np.abs(line)))
+    peak = float(abs(line[worst]))
+    facts = {"rms_power": rms, "peak_power": peak}
+    if infeed is None:
+        return check("infeed_power", rms, None, "W",
+                     f"RMS of the shaft power over the cam cycle (peak {peak:.4g} W "
+                     f"{_where(run, duty, worst)}); no infeed in [drive]: not rated"), facts
+    detail = (f"RMS {rms:.4g} W over the cam cycle against the rated {infeed.rated_power:g} W, "
+              f"peak {peak:.4g} W {_where(run, duty, worst)} against the peak "
+              f"{infeed.peak_power:g} W ({infeed.kind}; the larger share counts; the DC "
+              "link's store left out, the safe side)")
+    if peak / infeed.peak_power > rms / infeed.rated_power:
+        return check("infeed_power", peak, infeed.peak_power, "W", detail), facts
+    return check("infeed_power", rms, infeed.rated_power, "W", detail), facts
 
 
 def inertia_ratio_check(run: PreparedRun) -> Check:
@@ -292,11 +339,13 @@ def sizing_checks(run: PreparedRun) -> tuple[list[Check], dict, dict]:
     speed = motor_speed_check(run, duty)
     currents, current_facts = drive_current_checks(run, duty)
     regeneration, regeneration_facts = regeneration_check(run, duty)
+    infeed_check, infeed_facts = infeed_power_check(run, duty)
     inertia = inertia_ratio_check(run)
     gearhead, gearhead_facts = gearhead_torque_check(run, duty)
-    checks = [thermal, speed_torque, speed, *currents, regeneration, inertia, gearhead]
+    checks = [thermal, speed_torque, speed, *currents, regeneration, infeed_check, inertia,
+              gearhead]
     spec = run.scene.sizing
-    motor, module, gear = spec.motor, spec.module, spec.gearhead
+    motor, module, gear, infeed = spec.motor, spec.module, spec.gearhead, spec.infeed
     mech = run.mechanics
 
     def part(model, source, rows: dict, *verdicts: Check) -> dict:
@@ -335,10 +384,20 @@ def sizing_checks(run: PreparedRun) -> tuple[list[Check], dict, dict]:
                      "rated": {"rated_torque": mech.coupling_rated_torque,
                                "max_torque": mech.coupling_max_torque},
                      "utilisation_percent": None},  # filled from the coupling checks
+        "infeed": part(infeed.model if infeed else None, infeed.source if infeed else None, {
+            "required": {"rms_power": infeed_facts["rms_power"],
+                         "peak_power": infeed_facts["peak_power"],
+                         "energy_to_line_per_cycle":
+                             regeneration_facts["energy_to_line_per_cycle"] if infeed else None},
+            "rated": {"kind": infeed.kind if infeed else None,
+                      "rated_power": infeed.rated_power if infeed else None,
+                      "peak_power": infeed.peak_power if infeed else None}},
+            infeed_check),
         "brake_resistor": part(None, None, {
             "required": {"largest_stored_energy": regeneration_facts["largest_stored_energy"],
                          "energy_returned_per_cycle":
-                             regeneration_facts["energy_returned_per_cycle"]},
+                             regeneration_facts["energy_returned_per_cycle"],
+                         "peak_braking_power": regeneration_facts["peak_braking_power"]},
             "rated": {"dc_link_energy": regeneration_facts["dc_link_energy"],
                       "brake_resistor_power": regeneration_facts["brake_resistor_power"]}},
             regeneration),

@@ -82,6 +82,15 @@ CAM_FIELDS: tuple[Field, ...] = (
           "units, or a string such as \"2 counts\" or \"0.01 mm\".", unit="slave units or counts",
           default_text="none", limits=f"> 0 and <= {MAX_MAGNITUDE:g}; at least the 1/2-count final "
           "rounding", source=_SPEC),
+    Field("table", "interpolation_tolerance", "number or string", "With `tolerance`: the largest "
+          "error the table may add to the 1/2 count that rounding every lookup to whole counts costs "
+          "(interpolation, stored data, arithmetic), in the same forms, e.g. \"0.05 counts\". The "
+          "certified bound then meets both: at most `tolerance`, and at most 1/2 count + this. For a "
+          "tolerance of a count or so, where that 1/2 count is most of it: a 1-count tolerance alone "
+          "lets the table add up to 1/2 count more (measured 0.73 counts on a 26-bit drum); with "
+          "\"0.05 counts\" here the measured error stays within 0.55 (docs/table_formats.md).",
+          unit="slave units or counts", default_text="none: the tolerance alone sizes the table",
+          limits=f"> 0 and <= {MAX_MAGNITUDE:g}; only with a tolerance", source=_SPEC),
     Field("table", "master_counts", "integer", "The master period in encoder counts.",
           unit="counts", default=DEFAULT_MASTER_COUNTS, minimum=2, maximum=MAX_MASTER_COUNTS,
           source=_SPEC),

@@ -367,6 +367,13 @@ def _table(top: Fields, slave_unit: str) -> dict:
         with t.calling(lambda field: field):
             parse_tolerance(t.get("tolerance"), t.name("tolerance"), slave_unit)
         out["tolerance"] = t.get("tolerance")
+    if "interpolation_tolerance" in t:
+        with t.calling(lambda field: field):
+            parse_tolerance(t.get("interpolation_tolerance"), t.name("interpolation_tolerance"), slave_unit)
+        if "tolerance" not in t:
+            raise t.error(str(validate.fail(t.name("interpolation_tolerance"), t.get("interpolation_tolerance"),
+                                            "given with a tolerance (it refines the tolerance's sizing)")))
+        out["interpolation_tolerance"] = t.get("interpolation_tolerance")
     if "horner_bits" in t:
         out["horner_bits"] = t.integer("horner_bits", minimum=min(HORNER_BITS), maximum=max(HORNER_BITS))
         if out["horner_bits"] not in HORNER_BITS:

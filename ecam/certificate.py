@@ -11,6 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
+# Every lookup rounds a real position to whole counts (FORMAT.md step 5): up to 1/2 count whatever the table.
+FINAL_ROUNDING_COUNTS = 0.5
+
 
 @dataclass(frozen=True)
 class Measurement:
@@ -99,6 +102,9 @@ class Certificate:
     points : int or None
         Stored points of the table the certificate speaks for (``report['points']``); None only
         for a certificate built by hand without it.
+    interpolation_tolerance_counts : float or None
+        The interpolation tolerance the table was chosen for (``ecam.TableSpec``), when given:
+        the bound less the final rounding's 1/2 count is at most this.
     """
 
     slave_counts_per_unit: float
@@ -113,6 +119,7 @@ class Certificate:
     net_stroke_units: float = 0.0
     net_stroke_residual_counts: float = 0.0
     points: int | None = None
+    interpolation_tolerance_counts: float | None = None
 
     def __post_init__(self):
         # The compiler computes these in numpy: stored as Python floats, so the repr is plain and
@@ -121,8 +128,9 @@ class Certificate:
                      "predicted_error_counts", "net_stroke_units", "net_stroke_residual_counts"):
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "joints_off_points", tuple(float(x) for x in self.joints_off_points))
-        if self.tolerance_counts is not None:
-            object.__setattr__(self, "tolerance_counts", float(self.tolerance_counts))
+        for name in ("tolerance_counts", "interpolation_tolerance_counts"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, float(getattr(self, name)))
         if self.points is not None:
             object.__setattr__(self, "points", int(self.points))
 
@@ -150,7 +158,8 @@ class Certificate:
         """
         return replace(self, measurement=measurement)
 
-    def for_tolerance(self, tolerance_counts: float) -> "Certificate":
+    def for_tolerance(self, tolerance_counts: float, interpolation_tolerance_counts: float | None = None
+                      ) -> "Certificate":
         """This certificate, recording the tolerance the table was chosen for.
 
         Parameters
@@ -158,13 +167,17 @@ class Certificate:
         tolerance_counts : float
             The tolerance in slave counts (``tolerance_counts`` and ``tolerance_units`` in
             :meth:`report`).
+        interpolation_tolerance_counts : float, optional
+            The interpolation tolerance in slave counts, when one was given
+            (``interpolation_tolerance_counts`` in :meth:`report`, with the bound's two parts).
 
         Returns
         -------
         Certificate
             A new certificate; this one is unchanged (it is frozen).
         """
-        return replace(self, tolerance_counts=float(tolerance_counts))
+        return replace(self, tolerance_counts=float(tolerance_counts),
+                       interpolation_tolerance_counts=interpolation_tolerance_counts)
 
     def report(self, table) -> dict:
         """The certificate as the documented dictionary (``table.report``), joined with ``table``'s
@@ -209,6 +222,15 @@ class Certificate:
         if self.tolerance_counts is not None:
             out["tolerance_counts"] = self.tolerance_counts
             out["tolerance_units"] = self.tolerance_counts / self.slave_counts_per_unit
+        if self.interpolation_tolerance_counts is not None:
+            # Only tables compiled to an interpolation tolerance have these keys (the other
+            # reports are unchanged): the bound's two parts, each against its own tolerance.
+            out.update({
+                "interpolation_tolerance_counts": self.interpolation_tolerance_counts,
+                "interpolation_tolerance_units": self.interpolation_tolerance_counts / self.slave_counts_per_unit,
+                "final_rounding_counts": FINAL_ROUNDING_COUNTS,
+                "predicted_above_rounding_counts": self.predicted_error_counts - FINAL_ROUNDING_COUNTS,
+            })
         net: Fraction = f.net_stroke
         if net:  # only tables with a net stroke have these keys (the others' reports are unchanged)
             out.update({

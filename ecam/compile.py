@@ -15,7 +15,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .certificate import Certificate, Measurement
+from .certificate import FINAL_ROUNDING_COUNTS, Certificate, Measurement
 from .errors import InputError, TableFormatError
 from .profile import CamProfile
 from .table import (
@@ -52,6 +52,7 @@ def compile_table(
     master_counts: int | None = None,
     slave_counts_per_unit: float | None = None,
     horner_bits: int | None = None,
+    interpolation_tolerance=None,
     certify: bool = True,
     progress=None,
 ) -> CamTable:
@@ -70,6 +71,10 @@ def compile_table(
         Stored points (intervals + 1); ``points - 1`` must divide ``master_counts``.
     tolerance : float or str, optional
         Largest allowed error: a number in slave units, or a string like ``"2 counts"``.
+    interpolation_tolerance : float or str, optional
+        With ``tolerance``: the largest error the table may add to the final rounding's 1/2 count
+        (same forms), so that the measured error stays near the 1/2 count; default: none (the
+        tolerance alone sizes the table). See :class:`TableSpec`.
     master_counts : int
         Master period in encoder counts, 2..2^31.
     slave_counts_per_unit : float
@@ -97,7 +102,8 @@ def compile_table(
     if not isinstance(profile, CamProfile):
         raise InputError(f"profile {type(profile).__name__} should be a CamProfile (see ecam.load_cam)")
     overrides = dict(interp=interp, points=points, tolerance=tolerance, master_counts=master_counts,
-                     slave_counts_per_unit=slave_counts_per_unit, horner_bits=horner_bits)
+                     slave_counts_per_unit=slave_counts_per_unit, horner_bits=horner_bits,
+                     interpolation_tolerance=interpolation_tolerance)
     if spec is None:
         spec = TableSpec.resolve(profile.table, **overrides)
     elif any(value is not None for value in overrides.values()):
@@ -128,7 +134,8 @@ def compile_table(
             )
         return job.build(KINDS[spec.interp], intervals, certify=certify, progress=progress)
     kinds = list(KINDS.values()) if spec.interp == "auto" else [KINDS[spec.interp]]
-    return job.search(kinds, spec.tolerance_counts(profile.slave_unit), certify=certify, progress=progress)
+    return job.search(kinds, spec.tolerance_counts(profile.slave_unit),
+                      spec.interpolation_tolerance_counts(profile.slave_unit), certify=certify, progress=progress)
 
 
 def net_stroke_fraction(net_stroke: float, slave_counts_per_unit: float) -> tuple[Fraction, float]:
@@ -227,7 +234,13 @@ class _Job:
         return sorted(self.M // h for h in divisors(g) if h <= MAX_STEP_COUNTS)
 
     # search -------------------------------------------------------------------------------------
-    def search(self, degrees, tol_counts, *, certify, progress):
+    def search(self, degrees, tol_counts, interp_tol_counts=None, *, certify, progress):
+        """The fewest bytes whose certified bound meets ``tol_counts`` and, when given, the final
+        rounding's 1/2 count plus ``interp_tol_counts`` (the bound less that 1/2 count, all the
+        table adds to it, within ``interp_tol_counts``)."""
+        target = tol_counts
+        if interp_tol_counts is not None:
+            target = min(tol_counts, FINAL_ROUNDING_COUNTS + interp_tol_counts)
         best = None
         floor_seen = math.inf
         for degree in degrees:
@@ -235,8 +248,8 @@ class _Job:
                 if intervals + 1 > MAX_POINTS:
                     break
                 # the final rounding alone costs 1/2 count: a lower bound of the certified error
-                predicted = self.predict_interpolation(degree, intervals) + 0.5
-                if predicted > tol_counts:
+                predicted = self.predict_interpolation(degree, intervals) + FINAL_ROUNDING_COUNTS
+                if predicted > target:
                     floor_seen = min(floor_seen, predicted)
                     continue
                 nbytes = HEADER_BYTES + (intervals + 1) * 4 * ((degree + 1) // 2)
@@ -246,10 +259,16 @@ class _Job:
                     table = self.build(degree, intervals, certify=False)
                 except TableFormatError:
                     continue  # this size has no valid format (e.g. a step past 2^30); try the next
-                if table.certificate.predicted_error_counts <= tol_counts:
+                if table.certificate.predicted_error_counts <= target:
                     best = (nbytes, table)
                     break
                 floor_seen = min(floor_seen, table.certificate.predicted_error_counts)
+        if best is None and target < tol_counts:
+            raise TableFormatError(
+                f"interpolation_tolerance {interp_tol_counts:.4g} counts ({interp_tol_counts / self.S:.4g} "
+                f"{self.profile.slave_unit}) cannot be met within {MAX_POINTS} points; the best bound found "
+                f"is {floor_seen - FINAL_ROUNDING_COUNTS:.6g} counts above the final rounding's 1/2 count"
+            )
         if best is None:
             raise TableFormatError(
                 f"tolerance {tol_counts:.4g} counts ({tol_counts / self.S:.4g} {self.profile.slave_unit}) cannot be "
@@ -262,7 +281,7 @@ class _Job:
             certificate = table.certificate.measured(self.measure(table, data, progress))
         else:
             certificate = table.certificate
-        return replace(table, certificate=certificate.for_tolerance(tol_counts))
+        return replace(table, certificate=certificate.for_tolerance(tol_counts, interp_tol_counts))
 
     # prediction ---------------------------------------------------------------------------------
     def predict_interpolation(self, degree: int, intervals: int) -> float:

@@ -418,8 +418,9 @@ class CamProfile:
     name, master_unit, slave_unit : str
         For reports and plots.
     table : dict
-        Default table format for the compiler (interp, points or tolerance, master_counts,
-        slave_counts_per_unit), from the cam file's ``[table]`` section.
+        Default table format for the compiler (interp, points or tolerance and
+        interpolation_tolerance, master_counts, slave_counts_per_unit), from the cam file's
+        ``[table]`` section.
     net_stroke : float, optional
         For a periodic cam whose slave advances every period (a rotary knife's drum turns 360
         degrees per cut, an indexing table one station): that advance, in slave units. It must
@@ -993,7 +994,8 @@ def _linspace_rows(start: np.ndarray, stop: np.ndarray, num: int) -> np.ndarray:
 
 
 # The settings of a cam file's [table] (ecam.table_spec.TableSpec checks their values).
-TABLE_KEYS = ("horner_bits", "interp", "master_counts", "points", "slave_counts_per_unit", "tolerance")
+TABLE_KEYS = ("horner_bits", "interp", "interpolation_tolerance", "master_counts", "points", "slave_counts_per_unit",
+              "tolerance")
 # TOML basic strings: these characters are escaped, every other control character as \uXXXX.
 _TOML_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
 

@@ -84,6 +84,13 @@ class TableSpec:
         32-bit words, so that ``ecam_poly_position`` runs its narrow kernels (one 32x32 multiply
         per degree: the cheapest lookup on 32-bit cores); it has fewer work bits, and the
         certificate says what that costs, which grows with the stroke in counts (FORMAT.md).
+    interpolation_tolerance : float, str or None
+        With ``tolerance``: the largest error the table may add to the final rounding's 1/2
+        count (interpolation, stored data, arithmetic): slave units or a string such as ``"0.05
+        counts"``. The certified bound then meets both: it is at most ``tolerance`` and at most
+        1/2 count + ``interpolation_tolerance``. None (default): the tolerance alone sizes the
+        table, and the interpolation may take all of it above the 1/2 count (see
+        docs/table_formats.md, "One count on a 26-bit drum").
     """
 
     interp: str = DEFAULT_INTERP
@@ -92,6 +99,7 @@ class TableSpec:
     master_counts: int = DEFAULT_MASTER_COUNTS
     slave_counts_per_unit: float = DEFAULT_COUNTS_PER_UNIT
     horner_bits: int = 64
+    interpolation_tolerance: float | str | None = None
 
     def __post_init__(self):
         validate.choice("interp", self.interp, INTERPOLATIONS)
@@ -116,6 +124,11 @@ class TableSpec:
             parse_tolerance(self.tolerance)
         if self.interp == "auto" and self.tolerance is None:
             raise validate.fail("interp", self.interp, "given a tolerance, not points (it picks the point count)")
+        if self.interpolation_tolerance is not None:
+            if self.tolerance is None:
+                raise validate.fail("interpolation_tolerance", self.interpolation_tolerance,
+                                    "absent when points are given: it sizes the table with the tolerance")
+            parse_tolerance(self.interpolation_tolerance, "interpolation_tolerance")
 
     def tolerance_counts(self, slave_unit: str | None = None) -> float | None:
         """The tolerance in slave counts (None for a table of fixed size); ``slave_unit`` checks
@@ -125,12 +138,23 @@ class TableSpec:
         value, in_counts = parse_tolerance(self.tolerance, slave_unit=slave_unit)
         return value if in_counts else value * self.slave_counts_per_unit
 
+    def interpolation_tolerance_counts(self, slave_unit: str | None = None) -> float | None:
+        """The interpolation tolerance in slave counts (None when not given), as
+        :meth:`tolerance_counts`."""
+        if self.interpolation_tolerance is None:
+            return None
+        value, in_counts = parse_tolerance(self.interpolation_tolerance, "interpolation_tolerance",
+                                           slave_unit=slave_unit)
+        return value if in_counts else value * self.slave_counts_per_unit
+
     @classmethod
     def resolve(cls, defaults: Mapping, *, interp=None, points=None, tolerance=None, master_counts=None,
-                slave_counts_per_unit=None, horner_bits=None) -> "TableSpec":
+                slave_counts_per_unit=None, horner_bits=None, interpolation_tolerance=None) -> "TableSpec":
         """The spec from explicit settings over ``defaults`` (a cam file's ``[table]``).
 
-        Points and tolerance travel together: giving either one replaces both of the defaults'.
+        Points and tolerance travel together: giving either one replaces both of the defaults',
+        and the defaults' ``interpolation_tolerance`` with them (it refines the defaults'
+        tolerance; give it again with an explicit tolerance).
         A default ``interp = "auto"`` with explicit ``points`` becomes ``cubic``, since ``auto``
         chooses the size that explicit points fix.
         """
@@ -140,6 +164,8 @@ class TableSpec:
                 interp = DEFAULT_INTERP
         if points is None and tolerance is None:
             points, tolerance = defaults.get("points"), defaults.get("tolerance")
+            if interpolation_tolerance is None:
+                interpolation_tolerance = defaults.get("interpolation_tolerance")
         return cls(
             interp=interp, points=points, tolerance=tolerance,
             master_counts=defaults.get("master_counts", DEFAULT_MASTER_COUNTS) if master_counts is None
@@ -147,4 +173,5 @@ class TableSpec:
             slave_counts_per_unit=defaults.get("slave_counts_per_unit", DEFAULT_COUNTS_PER_UNIT)
             if slave_counts_per_unit is None else slave_counts_per_unit,
             horner_bits=defaults.get("horner_bits", 64) if horner_bits is None else horner_bits,
+            interpolation_tolerance=interpolation_tolerance,
         )

@@ -22,6 +22,7 @@ import pytest
 
 from ecam import compile_table, load_cam
 from ecam.compile import net_stroke_fraction
+from ecam.errors import TableFormatError
 from ecam.table import narrow_horner
 from tests.test_c_runtime import CLI_SOURCES, STRICT_FLAGS, _compile, c_lookups, write_blob
 
@@ -33,6 +34,12 @@ MASTER_COUNTS = 2**20
 @pytest.fixture(scope="module")
 def knife():
     return load_cam(ROOT / "firmware_tables" / "cams" / "rotary_knife.toml")
+
+
+@pytest.fixture(scope="module")
+def cli(tmp_path_factory):
+    """The C runtime's command-line lookup, built once for the module."""
+    return _compile(tmp_path_factory.mktemp("drum_c") / "ecam_cli", CLI_SOURCES, STRICT_FLAGS)
 
 
 def drum(knife, tolerance, counts=DRUM_COUNTS):
@@ -96,8 +103,7 @@ def test_a_32_bit_core_runs_the_drum_in_32_bit_words(knife, counts):
     assert table.certificate.predicted_error_counts < (0.53 if counts == DRUM_COUNTS else 0.92)
 
 
-def test_the_drum_looks_up_bit_for_bit_in_c(knife, tmp_path):
-    cli = _compile(tmp_path / "ecam_cli", CLI_SOURCES, STRICT_FLAGS)
+def test_the_drum_looks_up_bit_for_bit_in_c(knife, cli, tmp_path):
     rng = np.random.default_rng(27)
     for counts, kind, points in ((DRUM_COUNTS, "quintic", 65), (2**30, "cubic", 129), (2**30, "linear", 257)):
         table = compile_table(knife, interp=kind, points=points, master_counts=MASTER_COUNTS,
@@ -112,3 +118,76 @@ def test_the_drum_looks_up_bit_for_bit_in_c(knife, tmp_path):
         expected = np.stack([position.astype(np.int64) & 0xFFFFFFFF, slope], axis=1)
         got[:, 0] &= 0xFFFFFFFF  # the C runtime returns the int32 wrap of a net stroke's position
         assert np.array_equal(got, expected), (counts, kind)
+
+
+# The drum's error a machine sees is the final rounding's 1/2 count plus what the table adds. At a
+# 1-count tolerance alone the table may add up to 1/2 count more (65 points above: measured 0.726);
+# an interpolation tolerance of 0.05 counts holds that part of the certified bound to 1/10 of the
+# rounding, so the measured error stays within 0.55 counts.
+DRUM_POINTS = {26: (129, 1612), 27: (129, 1612), 28: (257, 3148), 29: (257, 3148), 30: (257, 3148)}
+
+
+def rounding_alone(knife, bits, certify):
+    return compile_table(knife, interp="auto", tolerance="1 counts", interpolation_tolerance="0.05 counts",
+                         master_counts=MASTER_COUNTS, slave_counts_per_unit=2**bits / 360, certify=certify)
+
+
+def assert_measured_and_bit_for_bit_in_c(table, knife, cli, tmp_path, bits, limit):
+    """The integer lookup against the cam in float64 (its own error, 2^30 x 2^-52 counts, is far
+    below the limit) on every master count of the first period and of the billionth (the net
+    stroke 2^bits counts per period, exact); the C runtime's bits on a sample, as above."""
+    masters = np.arange(MASTER_COUNTS, dtype=np.int64)
+    exact = knife(masters * (knife.master_period / MASTER_COUNTS), 0) * (2**bits / 360)
+    worst = 0.0
+    for k in (0, 10**9):
+        position = table.lookup(np.int64(k * MASTER_COUNTS) + masters) - np.int64(k * 2**bits)
+        worst = max(worst, float(np.abs(position - exact).max()))
+    assert 0.5 <= worst <= limit, (bits, worst)
+    rng = np.random.default_rng(bits)
+    queries = np.concatenate([
+        np.array([0, 1, MASTER_COUNTS - 1, MASTER_COUNTS, -1, -MASTER_COUNTS, 2**40 + 3, 2**63 - 1, -(2**63)],
+                 dtype=np.int64),
+        rng.integers(-5 * MASTER_COUNTS, 5 * MASTER_COUNTS, 20000), rng.integers(-(2**62), 2**62, 2000)])
+    expected = np.stack(table.lookup(queries, with_slope=True), axis=1)
+    expected[:, 0] &= 0xFFFFFFFF
+    got = c_lookups(cli, write_blob(tmp_path, "drum.bin", table.to_bytes()), queries)
+    got[:, 0] &= 0xFFFFFFFF  # the C runtime returns the int32 wrap of a net stroke's position
+    assert np.array_equal(got, expected), bits
+    return worst
+
+
+def test_one_count_and_the_rounding_alone_on_a_26_bit_drum(knife, cli, tmp_path):
+    """The issue's drum at a 1-count tolerance and 0.05 counts above the rounding: 129 quintic
+    points (1612 bytes), certified 0.516, measured 0.501 (every master count, and across the
+    seam and at far periods); the certificate states both parts of its bound."""
+    table = rounding_alone(knife, 26, certify=True)
+    r = table.report
+    assert (r["interp"], r["points"], r["bytes"], table.format_version) == ("quintic", 129, 1612, 3)
+    assert r["predicted_error_counts"] <= 1.0 and r["tolerance_counts"] == 1.0
+    assert r["final_rounding_counts"] == 0.5 and r["interpolation_tolerance_counts"] == 0.05
+    assert r["predicted_above_rounding_counts"] == r["predicted_error_counts"] - 0.5 <= 0.05
+    assert r["wrap_max_error_counts"] <= r["max_error_counts"] <= r["predicted_error_counts"] <= 0.55
+    measured = assert_measured_and_bit_for_bit_in_c(table, knife, cli, tmp_path, 26, r["predicted_error_counts"])
+    assert measured == pytest.approx(r["max_error_counts"], abs=1e-6)
+    # without an interpolation tolerance the report has none of these keys (every other is as before)
+    plain = compile_table(knife, interp="auto", tolerance="1 counts", master_counts=MASTER_COUNTS,
+                          slave_counts_per_unit=2**26 / 360, certify=False)
+    assert plain.points == 65 and "final_rounding_counts" not in plain.report
+
+
+@pytest.mark.parametrize("bits", (27, 28, 29, 30))
+def test_one_count_and_the_rounding_alone_up_to_30_bits(knife, cli, tmp_path, bits):
+    table = rounding_alone(knife, bits, certify=False)
+    bound = table.certificate.predicted_error_counts
+    assert (table.report["interp"], table.points, table.nbytes) == ("quintic", *DRUM_POINTS[bits])
+    assert table.format_version == 3 and table.net_stroke == 2**bits and bound <= 0.55
+    assert_measured_and_bit_for_bit_in_c(table, knife, cli, tmp_path, bits, bound)
+
+
+def test_the_interpolation_tolerance_is_refused_with_the_best_it_could_reach(knife):
+    """Below what the stored data's fraction bits and the arithmetic allow: one line naming the
+    field and the best bound above the rounding."""
+    with pytest.raises(TableFormatError, match=r"^interpolation_tolerance 1e-06 counts .* cannot be met within "
+                                               r"\d+ points; the best bound found is 3\.46\d*e-06 counts above"):
+        compile_table(knife, interp="quintic", tolerance="1 counts", interpolation_tolerance="1e-6 counts",
+                      master_counts=2**12, slave_counts_per_unit=2**26 / 360, certify=False)

@@ -185,7 +185,9 @@ def cmd_compile(args) -> int:
     table = compile_table(
         profile, interp=args.interp, points=args.points, tolerance=args.tolerance,
         master_counts=args.master_counts, slave_counts_per_unit=args.slave_counts_per_unit,
-        horner_bits=getattr(args, "horner_bits", None), progress=progress_bar(f"certifying {profile.name}"),
+        horner_bits=getattr(args, "horner_bits", None),
+        interpolation_tolerance=getattr(args, "interpolation_tolerance", None),
+        progress=progress_bar(f"certifying {profile.name}"),
     )
     files = write_table(table, name, Path(args.output), formats, inputs=[args.cam])
     summary = table_summary(table, files)
@@ -238,7 +240,9 @@ def table_summary(table, files) -> dict:
             "master_counts", "step_counts", "slave_counts_per_unit", "joints_off_points", "format",
             "max_slope_error_counts_per_count", "tolerance_units", "net_stroke_units", "net_stroke_counts",
             "net_stroke_fraction", "net_stroke_exact", "net_stroke_residual_counts", "format_version",
-            "wrap_evaluated", "wrap_max_error_counts", "wrap_max_error_at_master_counts"]
+            "wrap_evaluated", "wrap_max_error_counts", "wrap_max_error_at_master_counts",
+            "interpolation_tolerance_counts", "interpolation_tolerance_units", "final_rounding_counts",
+            "predicted_above_rounding_counts"]
     out = {k: json_safe(r[k]) for k in keys if k in r}
     out["files"] = files
     return out
@@ -253,6 +257,10 @@ def certificate_text(name, table) -> str:
         f"  predicted bound {r['predicted_error_counts']:.4g} counts = {r['predicted_error_units']:.4g} {unit} "
         f"(interpolation {r['predicted_interpolation_counts']:.3g} + quantization {r['quantization_counts']:.3g})",
     ]
+    if "interpolation_tolerance_counts" in r:
+        lines.append(f"  of which the final rounding {r['final_rounding_counts']:.3g} counts and the table "
+                     f"{r['predicted_above_rounding_counts']:.3g} (within the interpolation tolerance "
+                     f"{r['interpolation_tolerance_counts']:.4g} counts)")
     if "max_error_counts" in r:
         lines.append(
             f"  measured max error {r['max_error_counts']:.4g} counts = {r['max_error_units']:.4g} {unit} "

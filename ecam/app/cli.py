@@ -233,6 +233,10 @@ def build_parser() -> argparse.ArgumentParser:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--points", type=int, help="stored points (intervals + 1) (default: the cam's [table])")
     group.add_argument("--tolerance", help="max error in slave units, or e.g. '2 counts' (default: the cam's [table])")
+    p.add_argument("--interpolation-tolerance", metavar="TOLERANCE",
+                   help="with a tolerance: max error the table adds to the final rounding's 1/2 count, e.g. "
+                        "'0.05 counts' (default: the cam's [table] when its tolerance applies, else none: the "
+                        "tolerance alone sizes the table)")
     p.add_argument("--master-counts", type=int,
                    help="master period in counts (default: the cam's [table], else 65536)")
     p.add_argument("--slave-counts-per-unit", type=float,

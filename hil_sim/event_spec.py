@@ -10,37 +10,43 @@ from pathlib import Path
 from ecam.cam_join import COORDINATES
 from ecam.validate import Fields, show
 
-__all__ = ["ACTIONS", "ACTIVATIONS", "EVENT_KEYS", "MAX_EVENTS", "Event", "parse_events"]
+__all__ = ["ACTIONS", "ACTIVATIONS", "EVENT_KEYS", "MAX_EVENTS", "START_MODES", "Event", "parse_events"]
 
 #: What an event does.
 ACTIONS = ("switch", "offset", "phase", "cam_out")
 #: When a switch (or offset) takes effect.
 ACTIVATIONS = ("immediate", "period_end", "master_position")
+#: How the slave takes a switched cam: at once (a jump where the new cam is elsewhere), or brought
+#: onto it by a jerk-limited correction (MC_CamIn StartMode ramp_in, :mod:`hil_sim.ramp_in`).
+START_MODES = ("direct", "ramp_in")
 #: The keys of an ``[[event]]`` table.
 EVENT_KEYS = ("name", "action", "at_period", "at_position", "at_s", "cam", "activation",
               "activation_position", "master", "slave", "master_offset", "slave_offset",
-              "master_scaling", "slave_scaling", "allow_jump", "shift", "max_velocity",
-              "max_acceleration", "max_jerk")
+              "master_scaling", "slave_scaling", "allow_jump", "start_mode", "shift",
+              "max_velocity", "max_acceleration", "max_jerk")
 #: The most events a scene may list.
 MAX_EVENTS = 64
 #: |offsets|, |shift| and |positions| of events [user units]; scalings are within 1e-6..1e6.
 MAX_EVENT_POSITION = 1e12
 SCALING_RANGE = (1e-6, 1e6)
 _AT_KEYS = ("at_period", "at_position", "at_s")
+_LIMIT_KEYS = ("max_velocity", "max_acceleration", "max_jerk")
 _SWITCH_KEYS = ("activation", "activation_position", "master", "slave", "master_offset",
-                "slave_offset", "master_scaling", "slave_scaling", "allow_jump")
+                "slave_offset", "master_scaling", "slave_scaling", "allow_jump", "start_mode",
+                *_LIMIT_KEYS)
 _ACTION_KEYS = {
     "switch": ("cam", *_SWITCH_KEYS),
     "offset": _SWITCH_KEYS,
-    "phase": ("shift", "max_velocity", "max_acceleration", "max_jerk"),
-    "cam_out": ("max_velocity", "max_acceleration", "max_jerk"),
+    "phase": ("shift", *_LIMIT_KEYS),
+    "cam_out": _LIMIT_KEYS,
 }
 
 
 @dataclass(frozen=True)
 class Event:
     """One ``[[event]]`` of a scene (see the module docstring; units: master units for master
-    positions and phase limits, slave units for slave offsets and cam-out limits, seconds)."""
+    positions and phase limits, slave units for slave offsets and the cam-out's and a ramp_in
+    switch's limits, seconds)."""
 
     index: int
     action: str
@@ -57,6 +63,7 @@ class Event:
     master_scaling: float = 1.0
     slave_scaling: float = 1.0
     allow_jump: bool = False
+    start_mode: str = "direct"
     shift: float | None = None
     max_velocity: float | None = None
     max_acceleration: float | None = None
@@ -130,10 +137,16 @@ def _event(r: Fields, index: int, resolve_cam) -> Event:
             values[key] = r.number(key, default=1.0, minimum=SCALING_RANGE[0],
                                    maximum=SCALING_RANGE[1])
         values["allow_jump"] = r.boolean("allow_jump", default=False)
+        values["start_mode"] = r.choice("start_mode", START_MODES, default="direct")
+        if values["start_mode"] == "direct":
+            for key in _LIMIT_KEYS:
+                if key in r:
+                    raise r.error(f"{r.name(key)}: applies to start_mode 'ramp_in' only (the "
+                                  "correction's limit)")
     if action == "phase":
         values["shift"] = r.number("shift", required=True, minimum=-MAX_EVENT_POSITION,
                                    maximum=MAX_EVENT_POSITION)
-    if action in ("phase", "cam_out"):
-        for key in ("max_velocity", "max_acceleration", "max_jerk"):
+    if action in ("phase", "cam_out") or values.get("start_mode") == "ramp_in":
+        for key in _LIMIT_KEYS:
             values[key] = r.number(key, required=True, minimum=0.0, maximum=1e15, strict=True)
     return Event(**values)

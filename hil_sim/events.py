@@ -19,7 +19,8 @@ vendors' documentation of those blocks:
   ``MC_CamIn``'s: the cam is evaluated at X = MasterScaling x master + MasterOffset (CODESYS
   SoftMotion, "MC_CamIn.MasterOffset, MC_CamIn.MasterScaling") and the slave is SlaveScaling x
   cam(X) + SlaveOffset (Beckhoff ``ST_CamScalingData``), plus, relative, the slave's position at
-  the switch.
+  the switch. ``start_mode = "ramp_in"`` (``MC_CamIn.StartMode``) brings the slave onto the new
+  cam by a jerk-limited correction instead of a jump (:mod:`hil_sim.ramp_in`).
 * ``offset``: the running cam with new offsets and scaling, activated like a switch.
 * ``phase``: ``MC_Phasing``: a jerk-limited shift of the master position the slave sees
   ("MasterPos from the perspective of the SlaveAxis = PhysicalMasterPos + PhaseShift", SEW's
@@ -71,6 +72,7 @@ from hil_sim.drive.cam_slot import (
     SWITCH_SLAVE_RELATIVE,
 )
 from hil_sim.drive.objects import CAM_COMMAND, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD
+from hil_sim import ramp_in
 from hil_sim.event_spec import Event
 from hil_sim.master import _Segment
 
@@ -106,6 +108,9 @@ class Switch:
         The derivatives that jump (0..3) and by how much (right - left).
     speed : float
         The master's speed there [master units/s], to state the jumps per second.
+    ramp : hil_sim.ramp_in.RampIn or None
+        start_mode ramp_in: the correction that brought the slave onto the new cam (then
+        ``jumps`` holds no position, velocity or acceleration jump: they are its start).
     """
 
     event: Event
@@ -118,6 +123,7 @@ class Switch:
     right: tuple = ()
     jumps: tuple = ()
     speed: float = 0.0
+    ramp: ramp_in.RampIn | None = None
 
     @property
     def errors(self) -> tuple:
@@ -130,6 +136,8 @@ class Switch:
 
     def jump_text(self, slave_unit: str = "", master_unit: str = "") -> str:
         """The jumps in words: per master unit and per second."""
+        if self.ramp is not None:
+            return "no jump, " + self.ramp.text(slave_unit, master_unit)
         if not self.jumps:
             return "no jump"
         parts = []
@@ -150,7 +158,9 @@ class Switch:
                 "master_coordinates": self.event.master, "slave_coordinates": self.event.slave,
                 "left": list(self.left), "right": list(self.right),
                 "jumps": {ORDER_NAMES[o]: s for o, s in self.jumps},
-                "allowed": self.event.allow_jump, "failed": self.failed}
+                "allowed": self.event.allow_jump, "failed": self.failed,
+                **({"start_mode": "ramp_in", "ramp_in": self.ramp and self.ramp.to_dict()}
+                   if self.event.start_mode == "ramp_in" else {})}
 
 
 @dataclass(frozen=True)
@@ -225,6 +235,7 @@ class _Piece:
         self.ratio = master_scaling * self.table_per_unit / per_unit
         self.identity = (self.ratio == 1.0 and origin == 0.0 and master_offset == 0.0
                          and base == 0.0 and slave_offset == 0.0 and slave_scaling == 1.0)
+        self.ramp = None  # start_mode ramp_in: its correction (hil_sim.ramp_in.RampIn)
 
     def x(self, master):
         return self.master_scaling * (master - self.origin) + self.master_offset
@@ -307,7 +318,7 @@ class _Program:
         piece = self.piece_at(t)
         m, v, a = (self.master_at(t, order) for order in range(3))
         s = piece.state(m, side)
-        return s[0], s[1] * v, s[2] * v * v + s[1] * a
+        return ramp_in.add_correction(piece, t, (s[0], s[1] * v, s[2] * v * v + s[1] * a))
 
     def time_of(self, master: float, after: float) -> float | None:
         """The first time >= ``after`` the master the slave sees reaches ``master`` (None: not
@@ -488,6 +499,7 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     drive_side = master_end is not None
     if drive_side:
         _check_drive_side(events)
+        ramp_in.refuse_drive_side(events)
     program = _Program(master, per_unit, end_s)
     program.pieces.append(_Piece(0.0, profile, cam.table, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, per_unit))
     switches, motions, commands = [], [], []
@@ -515,11 +527,18 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
         else:
             switch = _switch(event, program, requested, scale, per_unit)
             switches.append(switch)
+            if switch.ramp is not None:  # its correction is checked against its limits
+                ramp = switch.ramp
+                motions.append(Motion(event, ramp.start_s, ramp.duration_s, ramp.profile.peaks,
+                                      ramp.limits, -ramp.start[0]))
             if drive_side and switch.active_s is not None:
                 commands += _drive_commands(event, program.pieces[-1], requested, cycle_s,
                                             len(t_set), per_unit)
     targets, velocities, reference = _sample(program, cam, t_set, t_end, targets, velocities,
                                              reference, scale)
+    targets, velocities, reference = ramp_in.apply_corrections(
+        program.pieces, program.out and program.out[0], t_set, t_end, targets, velocities,
+        reference, scale)
     phase = program.phases.sample(t_end, 0) if program.phases.plans else None
     if drive_side and program.phases.plans:  # the master the drive sees: shifted by the phase
         master_end = np.rint(master.position(t_set) + program.phases.sample(t_set, 0) * per_unit
@@ -585,7 +604,9 @@ def _switch(event: Event, program: _Program, requested: float, scale: float,
     if active is None:
         return Switch(event, requested, None, cam=new_profile.name or "")
     running = program.piece_at(active)
-    left = running.state(master, side="left")
+    speed, acceleration = program.master_at(active, 1), program.master_at(active, 2)
+    left = ramp_in.with_correction(running.state(master, side="left"), running, active, speed,
+                                   acceleration, event.label)
     origin = master if event.master == "relative" else 0.0
     base = left[0] if event.slave == "relative" else 0.0
     piece = _Piece(active, new_profile, table, origin, event.master_offset, event.master_scaling,
@@ -593,9 +614,14 @@ def _switch(event: Event, program: _Program, requested: float, scale: float,
     right = piece.state(master, side="right")
     scales = [max(a, b) for a, b in zip(_scale(running), _scale(piece))]
     program.pieces.append(piece)
+    jumps = _jumps(left, right, scales)
+    compensated = tuple((order, size) for order, size in jumps if order < 3)
+    if event.start_mode == "ramp_in" and compensated:
+        piece.ramp = ramp_in.plan_ramp_in(event, active, left, right, compensated, speed,
+                                          acceleration)
+        jumps = tuple((order, size) for order, size in jumps if order == 3)
     return Switch(event, requested, active, master, piece.x(master), new_profile.name or "",
-                  tuple(left), tuple(right), _jumps(left, right, scales),
-                  program.master_at(active, 1))
+                  tuple(left), tuple(right), jumps, speed, piece.ramp)
 
 
 def _sample(program: _Program, cam, t_set, t_end, targets, velocities, reference, scale):

@@ -17,7 +17,8 @@ from hil_sim.control import FEEDFORWARD_SOURCES, MODELS
 from hil_sim.effects import (DEFAULT_BACKLASH_ARCMIN, DEFAULT_CURRENT_LOOP_HZ, DEFAULT_ENCODER_COUNTS,
                              DEFAULT_LOAD_FRICTION_SHARE, DEFAULT_MOTOR_FRICTION_SHARE, FIDELITIES,
                              VELOCITY_FILTER_SHARE)
-from hil_sim.event_spec import ACTIONS, ACTIVATIONS, MAX_EVENT_POSITION, MAX_EVENTS, SCALING_RANGE
+from hil_sim.event_spec import (ACTIONS, ACTIVATIONS, MAX_EVENT_POSITION, MAX_EVENTS, SCALING_RANGE,
+                                START_MODES)
 from hil_sim.faults import FRAME_KINDS, MAX_SYNC_JITTER_S
 from hil_sim.sync_schedule import MASTER_POSITION_PDOS, MAX_SYNC_COUNTER_OVERFLOW, MAX_TRANSMISSION_TYPE
 from hil_sim.sizing_spec import INFEEDS
@@ -84,11 +85,17 @@ _EVENT_FIELDS = (
           minimum=SCALING_RANGE[0], maximum=SCALING_RANGE[1], source=_EVENTS),
     Field("event", "allow_jump", "boolean", "switch, offset: a jump at the activation is reported but "
           "does not fail the switch_jumps check.", default=False, source=_EVENTS),
+    Field("event", "start_mode", "choice", "switch, offset: MC_CamIn StartMode: direct, the slave takes "
+          "the new cam at once (a jump where it is elsewhere); ramp_in, a correction from the jump to 0 "
+          "within max_velocity, max_acceleration, max_jerk (CODESYS VelocityDiff, Acceleration/"
+          "Deceleration, Jerk; hil_sim.ramp_in). Controller-side only.", default="direct",
+          choices=START_MODES, source="hil_sim.ramp_in"),
     Field("event", "shift", "number", "phase: the shift of the master the slave sees (MC_Phasing "
           "PhaseShift), added to the running one.", unit="master units", default=REQUIRED,
           minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION, when=_PHASE, source=_EVENTS),
-    *(Field("event", key, "number", f"phase, cam_out: the {what} limit of the phase shift (master "
-            f"units) or of the slave's stop (slave units).", unit=f"units/s{power}", default=REQUIRED,
+    *(Field("event", key, "number", f"phase, cam_out, start_mode ramp_in: the {what} limit of the "
+            f"phase shift (master units), of the slave's stop or of the ramp_in correction (slave "
+            f"units).", unit=f"units/s{power}", default=REQUIRED,
             minimum=0.0, exclusive_minimum=True, maximum=1e15, when=_PHASE, source=_EVENTS)
       for key, what, power in (("max_velocity", "velocity", ""), ("max_acceleration", "acceleration", "^2"),
                                ("max_jerk", "jerk", "^3"))),

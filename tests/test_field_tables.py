@@ -63,6 +63,8 @@ CHOICE_CONTEXT = {
     ("event.action", "cam_out"): {"event.max_velocity": 1.0, "event.max_acceleration": 1.0,
                                   "event.max_jerk": 1.0},
     ("event.activation", "master_position"): {"event.activation_position": 0.0},
+    ("event.start_mode", "ramp_in"): {"event.max_velocity": 1.0, "event.max_acceleration": 1.0,
+                                      "event.max_jerk": 1.0},
 }
 
 

@@ -1,7 +1,7 @@
 """The events panel of a scene's figure (a scene with ``[[event]]``, :mod:`hil_sim.events`): the
 slave's ideal path over time (the cams as switched, the phase shift and the cam-out in it), a
 vertical line at each switch's activation (red where it jumps and the scene does not allow it),
-the phase shift on a second axis, and the cam-out's stop shaded. Drawn into an axes of
+a ramp_in switch's correction shaded with its peak in the legend, the phase shift on a second axis, and the cam-out's stop shaded. Drawn into an axes of
 :func:`hil_sim.rig.plot.report_figure`; matplotlib comes with the axes."""
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ _PASSED = "#1a7f37"
 _PATH = "#1f77b4"
 _PHASE = "#8250df"
 _OUT = "#bf8700"
+_RAMP = "#0a7ea4"
 _GRID = "#d0d7de"
 
 
@@ -40,6 +41,11 @@ def draw_events(ax, report: Report) -> None:
         ax.annotate(f" {switch['name'] or switch['action']} ({switch['activation']})",
                     (switch["active_s"], 1.0), xycoords=("data", "axes fraction"), fontsize=7,
                     color=colour, rotation=90, va="top", ha="right")
+        ramp = switch.get("ramp_in")
+        if ramp:  # start_mode ramp_in: the correction's span, and its peak
+            ax.axvspan(ramp["start_s"], ramp["start_s"] + ramp["duration_s"], color=_RAMP, alpha=0.25,
+                       lw=0, label=f"ramp_in, peak correction {ramp['peak_correction']:.4g} "
+                                   f"{units.get('slave', '')}")
     for motion in events.get("motions", []):
         if motion["action"] == "cam_out":
             ax.axvspan(motion["start_s"], motion["start_s"] + motion["duration_s"], color=_OUT,

@@ -95,3 +95,14 @@ def test_ecam_compile_takes_it(tmp_path):
     assert summary["points"] == 25 and summary["interpolation_tolerance_counts"] == 0.05
     assert summary["final_rounding_counts"] + summary["predicted_above_rounding_counts"] == pytest.approx(
         summary["predicted_error_counts"])
+
+
+def test_ecam_compile_notes_the_share_above_the_rounding_where_the_tolerance_is_a_count(knife):
+    from ecam.app.compile_notes import rounding_hint
+
+    note = rounding_hint(ecam.compile_table(knife, tolerance="1 counts", certify=False))
+    assert note is not None and "adds up to 0.0793 more; --interpolation-tolerance" in note
+    assert rounding_hint(ecam.compile_table(knife, tolerance="1 counts", interpolation_tolerance="0.05 counts",
+                                            certify=False)) is None
+    assert rounding_hint(ecam.compile_table(knife, certify=False)) is None  # the file's 2 counts
+    assert rounding_hint(ecam.compile_table(knife, points=13, interp="quintic", certify=False)) is None

@@ -15,7 +15,7 @@ from ecam.export import EXPORTERS, identifier, json_safe
 from ecam.laws import LAWS
 from ecam.plot import plot_profile
 
-from .compile_notes import defaults_applied, defaults_text, joint_hint
+from .compile_notes import defaults_applied, defaults_text, joint_hint, rounding_hint
 from .progress import progress_bar
 
 
@@ -198,7 +198,7 @@ def cmd_compile(args) -> int:
         print(json.dumps(summary, indent=1))
     else:
         print(certificate_text(name, table))
-        for note in (joint_hint(profile, table), defaults_text(applied)):
+        for note in (rounding_hint(table), joint_hint(profile, table), defaults_text(applied)):
             if note:
                 print(note)
         for path in files:

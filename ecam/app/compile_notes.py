@@ -4,6 +4,7 @@ master counts that would put the joints listed off the table points on points.""
 
 from __future__ import annotations
 
+from ecam.certificate import FINAL_ROUNDING_COUNTS
 from ecam.joint_grid import joint_grid
 from ecam.table_spec import DEFAULT_COUNTS_PER_UNIT, DEFAULT_INTERP, DEFAULT_MASTER_COUNTS
 
@@ -14,6 +15,11 @@ _DEFAULTS = (("interp", "--interp", DEFAULT_INTERP), ("master_counts", "--master
 
 
 CHECKED_SEGMENTS = 1000
+# A table sized by a tolerance of at most this many counts (the final rounding's 1/2 count is half
+# of it or more), whose share above the rounding exceeds ROUNDING_SHARE counts, gets a note on
+# interpolation_tolerance (docs/table_formats.md, "The final rounding and what the table adds").
+ROUNDING_TOLERANCE = 1.0
+ROUNDING_SHARE = 0.05
 
 
 def defaults_applied(profile, args) -> dict:
@@ -55,3 +61,18 @@ def joint_hint(profile, table) -> str | None:
     return (f"  --master-counts {grid.master_counts} (any multiple of {grid.multiple}) puts every joint on a "
             f"whole count; then a table of {grid.smallest_points} points (or k x {grid.smallest_points - 1} "
             "+ 1) has them on points")
+
+
+def rounding_hint(table) -> str | None:
+    """One line, for a table sized by a tolerance of a count or less without an interpolation
+    tolerance, saying what the table adds to the final rounding and how to hold it lower."""
+    report = table.report
+    tolerance = report.get("tolerance_counts")
+    if tolerance is None or tolerance > ROUNDING_TOLERANCE or "interpolation_tolerance_counts" in report:
+        return None
+    share = report["predicted_error_counts"] - FINAL_ROUNDING_COUNTS
+    if share <= ROUNDING_SHARE:
+        return None
+    return (f"  the final rounding to whole counts costs {FINAL_ROUNDING_COUNTS:g} count of every lookup and this "
+            f"table adds up to {share:.3g} more; --interpolation-tolerance (interpolation_tolerance in [table]), "
+            f"e.g. '{ROUNDING_SHARE:g} counts', holds that part lower with more points")

@@ -48,8 +48,9 @@ drive see. Controller-side (cam mode "controller"), the set points the controlle
 plan's targets and velocity offsets); drive-side (cam mode "drive"), the master position it
 streams (shifted by the phase) and the commands a controller sends the drive's cam slot
 (:mod:`hil_sim.drive.cam_slot`) by SDO: the new table downloaded into 0x2000, its coordinates
-into 0x2001:05 and the activation into 0x2001:01 (1 at once, 3 at the running table's period
-end), in the cycle the event is requested. The bus-free path (:mod:`hil_sim.rig.fast`) applies
+into 0x2001:05 and 0x2001:07..0C (MC_CamIn's offsets and scaling), a master position into
+0x2001:06, and the activation into 0x2001:01 (1 at once, 3 at the running table's period end, 4
+at the master position), in the cycle the event is requested. The bus-free path (:mod:`hil_sim.rig.fast`) applies
 the same commands to its cam slot. Both paths check against the same ideal slave path.
 """
 
@@ -67,11 +68,16 @@ from ecam.camfile import load_cam, read_bounded
 from ecam.errors import InputError, SimulationError
 from ecam.profile import ORDER_NAMES
 from ecam.table_spec import TableSpec
+from hil_sim.drive.cam_coupling import scaling_ratio
 from hil_sim.drive.cam_slot import (
-    CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_PERIOD_END, SWITCH_MASTER_RELATIVE,
-    SWITCH_SLAVE_RELATIVE,
+    CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION, CAM_COMMAND_ACTIVATE_AT_PERIOD_END,
+    SWITCH_MASTER_RELATIVE, SWITCH_SLAVE_RELATIVE,
 )
-from hil_sim.drive.objects import CAM_COMMAND, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD
+from hil_sim.drive.objects import (
+    CAM_ACTIVATION_POSITION, CAM_COMMAND, CAM_MASTER_OFFSET, CAM_MASTER_SCALING_DENOMINATOR,
+    CAM_MASTER_SCALING_NUMERATOR, CAM_SLAVE_OFFSET, CAM_SLAVE_SCALING_DENOMINATOR,
+    CAM_SLAVE_SCALING_NUMERATOR, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD,
+)
 from hil_sim import ramp_in
 from hil_sim.event_spec import Event
 from hil_sim.master import _Segment
@@ -532,8 +538,7 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
                 motions.append(Motion(event, ramp.start_s, ramp.duration_s, ramp.profile.peaks,
                                       ramp.limits, -ramp.start[0]))
             if drive_side and switch.active_s is not None:
-                commands += _drive_commands(event, program.pieces[-1], requested, cycle_s,
-                                            len(t_set), per_unit)
+                commands += _drive_commands(event, program, requested, cycle_s, t_set, per_unit)
     targets, velocities, reference = _sample(program, cam, t_set, t_end, targets, velocities,
                                              reference, scale)
     targets, velocities, reference = ramp_in.apply_corrections(
@@ -548,44 +553,63 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
 
 
 def _check_drive_side(events: tuple) -> None:
-    """What the drive's cam slot takes: switches activated at once or at the period end, with
-    absolute or relative coordinates and no offset or scaling (the slot has none), and phase
-    shifts (the controller shifts the master it streams)."""
+    """What the drive's cam slot takes: switches and offsets activated at once, at the period
+    end or at a master position, absolute or relative, with MC_CamIn's offsets and scaling
+    (0x2001:05..0C), and phase shifts (the controller shifts the master it streams)."""
     for event in events:
-        if event.action in ("offset", "cam_out"):
-            raise InputError(f"{event.label}.action: {event.action!r} should be 'switch' or "
-                             "'phase' with cam_mode 'drive' (the drive's cam slot has no offsets; "
-                             "a cam-out runs controller-side)")
-        if event.action != "switch":
-            continue
-        if event.activation == "master_position":
-            raise InputError(f"{event.label}.activation: 'master_position' should be 'immediate' "
-                             "or 'period_end' with cam_mode 'drive' (0x2001:01 = 1 or 3)")
-        for key, plain in (("master_offset", 0.0), ("slave_offset", 0.0), ("master_scaling", 1.0),
-                           ("slave_scaling", 1.0)):
-            if getattr(event, key) != plain:
-                raise InputError(f"{event.label}.{key}: {getattr(event, key):g} should be "
-                                 f"{plain:g} with cam_mode 'drive' (the drive's cam slot has none)")
+        if event.action == "cam_out":
+            raise InputError(f"{event.label}.action: {event.action!r} should be 'switch', 'offset' "
+                             "or 'phase' with cam_mode 'drive' (a cam-out runs controller-side)")
 
 
-def _drive_commands(event: Event, piece: _Piece, requested: float, cycle_s: float, cycles: int,
-                    per_unit: float) -> list:
-    """The SDO writes of a switch: the table into 0x2000 (pending), its coordinates into
-    0x2001:05, the activation into 0x2001:01, after the SYNC of the cycle it is requested in."""
+def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: float,
+                    t_set: np.ndarray, per_unit: float) -> list:
+    """The SDO writes of a switch (or offset: the running table again, with its new
+    coordinates): the table into 0x2000 (pending), its coordinates into 0x2001:05 and MC_CamIn's
+    offsets and scaling into 0x2001:07..0C (:mod:`hil_sim.drive.cam_coupling`), a master position
+    activation's position into 0x2001:06, and the activation into 0x2001:01, after the SYNC of
+    the cycle it is requested in."""
+    piece = program.pieces[-1]
     if piece.table_per_unit != per_unit:
         raise InputError(f"{event.label}.cam: {piece.profile.master_period:g} "
                          f"{piece.profile.master_unit} should be a whole number of the scene's master "
                          f"counts ({per_unit:g} per {piece.profile.master_unit}) with cam_mode 'drive': "
                          "the drive looks the table up at the master counts it is sent")
     # the first cycle whose SYNC (k x cycle_s) is not before the request
-    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), cycles - 1)
+    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), len(t_set) - 1)
     mode = ((SWITCH_MASTER_RELATIVE if event.master == "relative" else 0)
             | (SWITCH_SLAVE_RELATIVE if event.slave == "relative" else 0))
-    activate = (CAM_COMMAND_ACTIVATE if event.activation == "immediate"
-                else CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
-    return [DriveCommand(cycle, *CAM_TABLE_DOWNLOAD, piece.table.to_bytes(), event.index),
-            DriveCommand(cycle, *CAM_SWITCH_MODE, mode, event.index),
-            DriveCommand(cycle, *CAM_COMMAND, activate, event.index)]
+    slave_per_unit = float(piece.table.certificate.slave_counts_per_unit)
+    out = [DriveCommand(cycle, *CAM_TABLE_DOWNLOAD, piece.table.to_bytes(), event.index),
+           DriveCommand(cycle, *CAM_SWITCH_MODE, mode, event.index)]
+    for key, value in _coupling_values(event, per_unit, slave_per_unit):
+        out.append(DriveCommand(cycle, *key, value, event.index))
+    if event.activation == "master_position":
+        position = round(event.activation_position * per_unit)
+        seen = program.master_at(float(t_set[cycle]))
+        if seen * per_unit >= position:
+            raise InputError(f"{event.label}.activation_position: {event.activation_position:g} should be "
+                             f"ahead of the master the drive has seen at the request ({seen:.6g}) with cam_mode "
+                             "'drive': the drive activates where the master crosses it (TwinCAT MC3 "
+                             "ECamActivationMode.AtMasterAbsolutePosition)")
+        out.append(DriveCommand(cycle, *CAM_ACTIVATION_POSITION, position, event.index))
+    activate = {"immediate": CAM_COMMAND_ACTIVATE, "period_end": CAM_COMMAND_ACTIVATE_AT_PERIOD_END,
+                "master_position": CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION}[event.activation]
+    out.append(DriveCommand(cycle, *CAM_COMMAND, activate, event.index))
+    return out
+
+
+def _coupling_values(event: Event, per_unit: float, slave_per_unit: float) -> list:
+    """MC_CamIn's offsets [counts] and scaling (numerator, denominator: the nearest fraction
+    whose terms fit UNSIGNED32) as the drive takes them (0x2001:07..0C)."""
+    out = [(CAM_MASTER_OFFSET, round(event.master_offset * per_unit)),
+           (CAM_SLAVE_OFFSET, round(event.slave_offset * slave_per_unit))]
+    for numerator, denominator, scaling in (
+            (CAM_MASTER_SCALING_NUMERATOR, CAM_MASTER_SCALING_DENOMINATOR, event.master_scaling),
+            (CAM_SLAVE_SCALING_NUMERATOR, CAM_SLAVE_SCALING_DENOMINATOR, event.slave_scaling)):
+        ratio = scaling_ratio(scaling)
+        out += [(numerator, ratio[0]), (denominator, ratio[1])]
+    return out
 
 
 def _switch(event: Event, program: _Program, requested: float, scale: float,

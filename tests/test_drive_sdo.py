@@ -235,8 +235,10 @@ RANGES = [
     (0x60C2, 2, 1, drv.ABORT_VALUE_TOO_HIGH),
     (0x6007, 0, 4, drv.ABORT_VALUE_TOO_HIGH),  # abort connection option code 0..3
     (0x6007, 0, -1, drv.ABORT_VALUE_TOO_LOW),
-    (0x2001, 1, 4, drv.ABORT_VALUE_TOO_HIGH),  # cam command 0..3 (3: at the period end, issue 23)
+    (0x2001, 1, 5, drv.ABORT_VALUE_TOO_HIGH),  # cam command 0..4 (3: at the period end, 4: at a master position)
     (0x2001, 5, 4, drv.ABORT_VALUE_TOO_HIGH),  # switch coordinates: two bits
+    (0x2001, 9, 0, drv.ABORT_VALUE_TOO_LOW),  # a master scaling numerator of 0 (issue 23)
+    (0x2001, 12, 0, drv.ABORT_VALUE_TOO_LOW),  # a slave scaling denominator of 0: divides
     (0x2004, 0, 2, drv.ABORT_VALUE_TOO_HIGH),  # cam mode 0..1
     (0x1005, 0, 0x40000080, drv.ABORT_INVALID_VALUE),  # SYNC producer: the drive consumes it
     (0x1005, 0, 0x20000080, drv.ABORT_INVALID_VALUE),  # 29-bit CAN-ID

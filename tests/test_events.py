@@ -157,7 +157,7 @@ def test_events_after_a_cam_out_and_drive_side_events_are_refused():
     with pytest.raises(InputError, match="should come before the cam_out"):
         _plan(late)
     drive = replace(_scene("changeover"), cam_mode="drive", duration=DurationSpec(cycles=10))
-    with pytest.raises(InputError, match=r"event\[3\] stop.action: 'cam_out' should be 'switch' or "
+    with pytest.raises(InputError, match=r"event\[3\] stop.action: 'cam_out' should be 'switch', 'offset' or "
                        "'phase' with cam_mode 'drive'"):
         _plan(drive)
 

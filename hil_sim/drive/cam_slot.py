@@ -13,8 +13,12 @@ the period is the one holding the master of the last cycle before the command; g
 pending table takes over at the boundary count itself, going backwards at the count below it,
 placed at the boundary either way; a jump over several periods switches at the first boundary; a
 table that does not repeat has one period, its master range, and armed after the master left it
-the pending table takes over at the next cycle's master. 0x2001:02 shows
-:data:`CAM_STATUS_QUEUED` until then. 0x2001:05 places the table then activated (by 1 or 3) as
+the pending table takes over at the next cycle's master. Writing 4 arms it to take over where the
+master crosses 0x2001:06, either way (TwinCAT ``MC_CAMACTIVATION_ATMASTERAXISPOS``; MC3
+``ECamActivationMode.AtMasterAbsolutePosition``: "Activation occurs when master axis position
+crosses the activation position"), placed at that position. 0x2001:02 shows
+:data:`CAM_STATUS_QUEUED` until then. Every activation (1, 3, 4) also takes ``MC_CamIn``'s offsets
+and scaling from 0x2001:07..0C (:mod:`hil_sim.drive.cam_coupling`). 0x2001:05 places the table then activated (by 1 or 3) as
 PLCopen's ``MasterAbsolute`` / ``SlaveAbsolute`` do: bit 0 master relative (its master 0 at the
 activation's master position: the period end, or the master of the cycle for 1), bit 1 slave
 relative (the running table's position there added); 0, both absolute, is the drive as before.
@@ -39,9 +43,13 @@ from canopen.sdo import SdoAbortedError
 
 from ecam import CamTable
 from ecam.errors import TableFormatError
+from hil_sim.drive.cam_coupling import Coupling
 from hil_sim.drive.objects import (
-    ACTIVE_CAM_TABLE_CRC32, CAM_COMMAND, CAM_LAST_ERROR_CODE, CAM_LAST_ERROR_MESSAGE, CAM_MODE,
-    CAM_STATUS, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, MASTER_POSITION, PENDING_CAM_TABLE_CRC32,
+    ACTIVE_CAM_TABLE_CRC32, CAM_ACTIVATION_POSITION, CAM_COMMAND, CAM_LAST_ERROR_CODE,
+    CAM_LAST_ERROR_MESSAGE, CAM_MASTER_OFFSET, CAM_MASTER_SCALING_DENOMINATOR,
+    CAM_MASTER_SCALING_NUMERATOR, CAM_MODE, CAM_SLAVE_OFFSET, CAM_SLAVE_SCALING_DENOMINATOR,
+    CAM_SLAVE_SCALING_NUMERATOR, CAM_STATUS, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, MASTER_POSITION,
+    PENDING_CAM_TABLE_CRC32,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE
 from hil_sim.int32 import wrap_int32
@@ -51,6 +59,10 @@ CAM_COMMAND_NONE = 0
 CAM_COMMAND_ACTIVATE = 1
 CAM_COMMAND_DISCARD = 2
 CAM_COMMAND_ACTIVATE_AT_PERIOD_END = 3
+#: TwinCAT MC_CamActivationMode MC_CAMACTIVATION_ATMASTERAXISPOS ("at a defined master position
+#: referring to the absolute master axis position"; MC3 ECamActivationMode.AtMasterAbsolutePosition:
+#: "Activation occurs when master axis position crosses the activation position"): 0x2001:06.
+CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION = 4
 CAM_STATUS_ACTIVE = 0x01
 CAM_STATUS_PENDING = 0x02
 CAM_STATUS_LAST_DOWNLOAD_REFUSED = 0x04
@@ -59,6 +71,10 @@ CAM_STATUS_QUEUED = 0x10  # the pending table takes over at the running table's 
 #: 0x2001:05 bits: where an activated table's master 0 and slave 0 are.
 SWITCH_MASTER_RELATIVE = 0x01
 SWITCH_SLAVE_RELATIVE = 0x02
+
+# The kinds of a queued switch (CamSlot.queued).
+QUEUED_AT_BOUNDARY = "boundary"
+QUEUED_AT_POSITION = "position"
 
 #: Blobs longer than this [bytes] are verified by a worker when the drive runs on its own thread:
 #: about 5 400 cubic points, a few milliseconds of verification (a 1 kHz SYNC waits that long).
@@ -115,13 +131,14 @@ class CamSlot:
         # observed speed [counts/s], samples so far up to 2, speed out [counts/s]); empty: take
         # the next position as it is.
         self.master_observer: tuple = ()
-        # Where the active table sits (0x2001:05): its master 0 and the slave added [counts].
-        self.master_origin = 0
-        self.slave_base = 0
-        # A queued switch (SwitchPair's window): (window, ended) of the running table at the
-        # master of the last cycle before the command [table counts] (None: no cycle yet, the
-        # next one sets it); False: none queued.
-        self.queued: tuple | None | bool = False
+        # Where the active table sits (0x2001:05..0C, taken at its activation); the unscaled
+        # path's master origin and slave base cached from it [counts].
+        self._set_coupling(Coupling())
+        # A queued switch: (QUEUED_AT_BOUNDARY, window, ended): SwitchPair's window, the running
+        # table's period holding the master of the last cycle before the command [table counts]
+        # (window None: no cycle yet, the next one sets it); (QUEUED_AT_POSITION, position,
+        # last master) [master counts]; False: none queued.
+        self.queued: tuple | bool = False
 
     def reset(self) -> None:
         """Power-on: no table, none pending (a verification in progress is forgotten)."""
@@ -129,7 +146,7 @@ class CamSlot:
         self.active_table = self.pending_table = None
         self.active_blob = self.pending_blob = None
         self.master_observer = ()
-        self.master_origin = self.slave_base = 0
+        self._set_coupling(Coupling())
         self.queued = False
 
     def forget_master(self) -> None:
@@ -213,9 +230,9 @@ class CamSlot:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             if self.observing and self.active_table is not None:
                 master = self.master_observer[0]  # the master of the last cycle: the switch's
-                self._place(master, self.slave_base + self._lookup(master)[0])
-            else:
-                self.master_origin = self.slave_base = 0
+                self._place(master, self._slave_at(master))
+            else:  # the engagement: MC_CamIn's StartMode absolute, with its offsets and scaling
+                self._place(0, 0, engage=True)
             self._activate()
             self.master_observer = ()
         elif command == CAM_COMMAND_ACTIVATE_AT_PERIOD_END:
@@ -223,7 +240,15 @@ class CamSlot:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             # the running period: the one holding the master of the last cycle (SwitchPair's
             # window at the arming); no cycle yet: the next one's, and it cannot switch
-            self.queued = self._window(self.master_observer[0]) if self.observing else None
+            self.queued = ((QUEUED_AT_BOUNDARY, *self._window(self.master_observer[0])) if self.observing
+                           else (QUEUED_AT_BOUNDARY, None, None))
+            values[CAM_STATUS] |= CAM_STATUS_QUEUED
+        elif command == CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION:
+            if self.pending_table is None or self.active_table is None:
+                raise SdoAbortedError(ABORT_DEVICE_STATE)
+            # where the master crosses 0x2001:06, either way, from the master of the last cycle
+            self.queued = (QUEUED_AT_POSITION, int(values.get(CAM_ACTIVATION_POSITION, 0)),
+                           self.master_observer[0] if self.observing else None)
             values[CAM_STATUS] |= CAM_STATUS_QUEUED
         elif command == CAM_COMMAND_DISCARD:  # a verification in progress too
             self._generation += 1
@@ -251,23 +276,44 @@ class CamSlot:
     def observing(self) -> bool:
         return bool(self.master_observer)
 
-    def _place(self, master: int, slave: int) -> None:
-        """The next table's master origin and slave base for a switch at ``master`` [counts]
-        where the running table stands at ``slave`` [counts] (0x2001:05)."""
-        mode = self.values.get(CAM_SWITCH_MODE, 0)
-        self.master_origin = master if mode & SWITCH_MASTER_RELATIVE else 0
-        self.slave_base = slave if mode & SWITCH_SLAVE_RELATIVE else 0
+    def _place(self, master: int, slave: int, engage: bool = False) -> None:
+        """The next table's coordinates for an activation at ``master`` [counts] where the
+        running table stands at ``slave`` [counts]: 0x2001:05 (relative or absolute; always
+        absolute when ``engage``), the offsets 0x2001:07/08 and the scaling 0x2001:09..0C."""
+        values = self.values
+        mode = 0 if engage else values.get(CAM_SWITCH_MODE, 0)
+        self._set_coupling(Coupling(
+            zero=master if mode & SWITCH_MASTER_RELATIVE else 0,
+            master_offset=int(values.get(CAM_MASTER_OFFSET, 0)),
+            master_ratio=(int(values.get(CAM_MASTER_SCALING_NUMERATOR, 1)),
+                          int(values.get(CAM_MASTER_SCALING_DENOMINATOR, 1))),
+            base=slave if mode & SWITCH_SLAVE_RELATIVE else 0,
+            slave_offset=int(values.get(CAM_SLAVE_OFFSET, 0)),
+            slave_ratio=(int(values.get(CAM_SLAVE_SCALING_NUMERATOR, 1)),
+                         int(values.get(CAM_SLAVE_SCALING_DENOMINATOR, 1)))))
+
+    def _set_coupling(self, coupling: Coupling) -> None:
+        self.coupling = coupling
+        self.master_origin = coupling.origin
+        self.slave_base = coupling.slave_base
+        self.scaled = coupling.scaled
 
     def _lookup(self, master: int) -> tuple[int, int]:
-        """The active table at ``master`` [counts], from its origin (target without the base)."""
+        """The active table at ``master`` [counts], from its origin (target without the base;
+        unscaled)."""
         return self.active_table.lookup(master - self.master_origin, with_slope=True)
+
+    def _slave_at(self, master: int) -> int:
+        """The running cam's slave position [counts] at ``master`` [counts]."""
+        coupling = self.coupling
+        return coupling.y(self.active_table.lookup(coupling.x(master)))
 
     def _window(self, master: int) -> tuple[int, bool]:
         """The running table's period holding ``master`` [counts]: its start in the table's
         counts (0 for a table that does not repeat: its master range) and whether the master is
         outside it (the profile ended); SwitchPair's ``_window`` and ``_outside``."""
         table = self.active_table
-        local = master - self.master_origin
+        local = self.coupling.x(master)
         if not table.periodic:
             return 0, not 0 <= local < table.master_counts
         return local - local % table.master_counts, False
@@ -307,29 +353,49 @@ class CamSlot:
         position 0x2003, for an interpolation period of ``cycle_s``."""
         master = self.observe(cycle_s)
         if self.queued is not False:
-            self._switch_at_period_end(master)
+            self._switch_queued(master)
         # The velocity offset belongs to the target's time, as a controller's does: the cam's
         # slope there times the observed master speed (a scalar lookup takes the table's
         # pure-integer path: no numpy overhead per cycle).
+        if self.scaled:
+            coupling = self.coupling
+            position, slope = self.active_table.lookup(coupling.x(master), with_slope=True)
+            return (coupling.y(position),
+                    slope * coupling.velocity_ratio * self.master_observer[4] / _SLOPE_ONE)
         target, slope = self._lookup(master)
         velocity = slope * self.master_observer[4] / _SLOPE_ONE
         return target + self.slave_base, velocity
 
-    def _switch_at_period_end(self, master: int) -> None:
-        """A queued switch: the pending table takes over in the cycle whose master leaves the
-        running period, placed at the boundary crossed (SwitchPair.step and _cross)."""
-        if self.queued is None:  # the first cycle since the command sets the period
-            self.queued = self._window(master)
+    def _switch_queued(self, master: int) -> None:
+        """A queued switch: at a period boundary, the pending table takes over in the cycle
+        whose master leaves the running period, placed at the boundary crossed (SwitchPair.step
+        and _cross); at a master position, in the cycle whose master crosses it, either way,
+        placed there (forwards the position itself is the first count past it, as a boundary
+        is)."""
+        kind, where, state = self.queued
+        if kind == QUEUED_AT_POSITION:
+            if state is None:  # the first cycle since the command: where the master is
+                self.queued = (kind, where, master)
+            elif state < where <= master or master < where <= state:
+                self._place(where, self._slave_at(where))
+                self._activate()
+            else:
+                self.queued = (kind, where, master)
             return
-        window, ended = self.queued
-        local = master - self.master_origin
-        if ended:  # armed after the profile ended: at this cycle's master
-            boundary = local
-        elif 0 <= local - window < self.active_table.master_counts:
+        if where is None:  # the first cycle since the command sets the period
+            self.queued = (kind, *self._window(master))
             return
-        else:  # forwards the period's end, backwards its start (each period owns its start)
-            boundary = window + self.active_table.master_counts if local >= window else window
-        self._place(boundary + self.master_origin, self.slave_base + self.active_table.lookup(boundary))
+        coupling = self.coupling
+        local = coupling.x(master)
+        if state:  # armed after the profile ended: at this cycle's master
+            self._place(master, self._slave_at(master))
+            self._activate()
+            return
+        if 0 <= local - where < self.active_table.master_counts:
+            return
+        # forwards the period's end, backwards its start (each period owns its start)
+        boundary = where + self.active_table.master_counts if local >= where else where
+        self._place(coupling.master_at(boundary), coupling.y(self.active_table.lookup(boundary)))
         self._activate()
 
 

@@ -1,0 +1,211 @@
+"""Drive-side events (issue 23): the virtual drive's cam slot (hil_sim/drive/cam_slot.py) with
+MC_CamIn's offsets and scaling (0x2001:07..0C, hil_sim/drive/cam_coupling.py) and a switch at a
+master position (0x2001:01 = 4, 0x2001:06), against ecam.table_pair.SwitchPair (the firmware's
+switch) and against the same scene controller-side (hil_sim/events.py): the set points cycle by
+cycle, without running a drive (cheap), and one short run over the bus against the bus-free path."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ecam.errors import InputError
+from ecam.table_pair import SwitchPair
+from hil_sim import SCENES_DIR
+from hil_sim.drive.cam_coupling import Coupling, round_ratio, scaling_ratio
+from hil_sim.drive.cam_slot import (
+    CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION, CAM_COMMAND_ACTIVATE_AT_PERIOD_END,
+    CAM_MODE_DRIVE_SIDE, CAM_STATUS_QUEUED, CamSlot,
+)
+from hil_sim.drive.objects import (
+    CAM_ACTIVATION_POSITION, CAM_MASTER_OFFSET, CAM_MODE, CAM_SLAVE_OFFSET, CAM_STATUS, CAM_SWITCH_MODE,
+    MASTER_POSITION,
+)
+from hil_sim.int32 import wrap_int32
+from hil_sim.rig.cam import compile_cam
+from hil_sim.rig.fast import _cam_commands, _write
+from hil_sim.rig.plan import plan_run, wire_set_points
+from hil_sim.scene import parse_scene
+
+CYCLES = 1500  # 1.5 s at 60 rpm: the switch at 360 deg and half a period of the new cam
+SWITCH_B = {"action": "switch", "cam": "cams/product_b.toml", "at_position": 100.0, "allow_jump": True}
+
+
+def _scene(mode: str, events: list, speed_rpm: float = 60.0):
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data.update(cam_mode=mode, event=events, duration={"cycles": CYCLES})
+    data["master"]["speed_rpm"] = speed_rpm
+    return parse_scene(data, base=SCENES_DIR, source="events.toml").with_fidelity("ideal")
+
+
+def _tables():
+    """The seed cam's table and product B's, at the scene's counts."""
+    seed = _scene("drive", [])
+    b = replace(seed, cam=replace(seed.cam, file=SCENES_DIR / "cams" / "product_b.toml"))
+    return compile_cam(seed).table, compile_cam(b).table
+
+
+def _slot(table, values=None):
+    slot = CamSlot({CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: 0, **(values or {})})
+    slot.verify_download(table.to_bytes())
+    slot.write_command(CAM_COMMAND_ACTIVATE)
+    slot.write_mode(CAM_MODE_DRIVE_SIDE)
+    return slot
+
+
+def _drive_targets(scene):
+    """What the drive's cam slot commands each cycle for a drive-side scene's plan: the master
+    it is streamed and the events' SDO writes after each cycle's SYNC, as the rig applies them."""
+    cam = compile_cam(scene)
+    plan = plan_run(scene, cam, np.zeros(CYCLES), CYCLES)
+    masters = wire_set_points(plan, drive_side=True)[0].tolist()
+    slot = _slot(cam.table)
+    commands = _cam_commands(plan)
+    out = []
+    for k, master in enumerate(masters):
+        slot.values[MASTER_POSITION] = master
+        out.append(slot.target(0.001)[0])
+        for command in commands.get(k, ()):
+            _write(slot, slot.values, command)
+    return plan, np.array(out)
+
+
+def _controller_targets(events):
+    scene = _scene("controller", events)
+    return plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+
+
+# ------------------------------------------------------------------------------ the cam slot
+@pytest.mark.parametrize("mode", range(4))
+def test_offsets_on_the_drive_are_the_firmware_switch_both_ways(mode):
+    """MC_CamIn's MasterOffset and SlaveOffset (0x2001:07/08) with each queued switch: the slot's
+    targets are SwitchPair's (ecam_table_pair.c's) cycle by cycle, for a master that crosses one
+    switch forwards and another backwards, with jumps of up to a seventh of a period."""
+    seed, b = _tables()
+    rng = np.random.default_rng(230 + mode)
+    steps = np.concatenate([rng.integers(0, seed.master_counts // 7, 60), -rng.integers(0, b.master_counts // 7, 60)])
+    masters = np.cumsum(steps).tolist()
+    slot, pair = _slot(seed, {CAM_SWITCH_MODE: mode}), SwitchPair()
+    pair.engage(seed)
+    switched = []
+    for k, master in enumerate(masters):
+        for at, table in ((20, b), (70, seed)):
+            if k == at:
+                offsets = int(rng.integers(-50_000, 50_000)), int(rng.integers(-30_000, 30_000))
+                slot.values[CAM_MASTER_OFFSET], slot.values[CAM_SLAVE_OFFSET] = offsets
+                slot.verify_download(table.to_bytes())
+                slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+                pair.arm_mode(table, mode, *offsets)
+        slot.values[MASTER_POSITION] = wrap_int32(master)
+        sample = pair.step(master)
+        assert wrap_int32(slot.target(0.001)[0]) == sample.position, (k, master)
+        switched += [k] if sample.switched else []
+    assert len(switched) == 2 and masters[switched[1]] < masters[switched[1] - 1]
+
+
+def test_a_master_position_activation_switches_where_the_master_crosses_it_either_way():
+    """0x2001:01 = 4 (TwinCAT MC_CAMACTIVATION_ATMASTERAXISPOS: "when master axis position
+    crosses the activation position"): forwards at the position itself, backwards at the first
+    master below it, placed at the position (here master and slave relative: the new cam's 0
+    there, the running cam's position there added); not before, however close."""
+    seed, b = _tables()
+    where = 5000
+    slot = _slot(seed, {CAM_SWITCH_MODE: 3, CAM_ACTIVATION_POSITION: where})
+    slot.values[MASTER_POSITION] = 4000
+    slot.target(0.001)
+    slot.verify_download(b.to_bytes())
+    slot.write_command(CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION)
+    at = int(seed.lookup(where))
+    got = []
+    for master in (4999, 5000, 5001):
+        slot.values[MASTER_POSITION] = master
+        got.append(slot.target(0.001)[0])
+        if master == 4999:
+            assert slot.values[CAM_STATUS] & CAM_STATUS_QUEUED
+    assert got == [int(seed.lookup(4999)), at + int(b.lookup(0)), at + int(b.lookup(1))]
+    # backwards across it: armed again (the seed, absolute), the switch at the count below
+    slot.verify_download(seed.to_bytes())
+    slot.values[CAM_SWITCH_MODE] = 0
+    slot.write_command(CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION)
+    got = []
+    for master in (5003, 5000, 4999):
+        slot.values[MASTER_POSITION] = master
+        got.append(slot.target(0.001)[0])
+    assert got == [at + int(b.lookup(3)), at + int(b.lookup(0)), int(seed.lookup(4999))]
+    assert not slot.values[CAM_STATUS] & CAM_STATUS_QUEUED
+
+
+def test_scaling_is_a_ratio_of_integers_rounded_half_up():
+    """MasterScaling and SlaveScaling as numerator/denominator (0x2001:09..0C): X = round(N (m -
+    zero) / D) + MasterOffset, slave = base + SlaveOffset + round(N CAM(X) / D), half up."""
+    assert scaling_ratio(0.5) == (1, 2) and scaling_ratio(1.25) == (5, 4) and scaling_ratio(1e6) == (10**6, 1)
+    assert scaling_ratio(1 / 3) == (1, 3)
+    assert [round_ratio(v, 1, 2) for v in (-3, -2, -1, 0, 1, 2, 3)] == [-1, -1, 0, 0, 1, 1, 2]
+    c = Coupling(zero=100, master_offset=7, master_ratio=(1, 2), base=1000, slave_offset=-5, slave_ratio=(5, 4))
+    assert c.x(100) == 7 and c.x(103) == 9 and c.x(97) == 6  # 1.5 -> 2, -1.5 -> -1: half up
+    assert c.master_at(9) == 104 and c.y(8) == 1005  # round(8 x 5/4) = 10, + 1000 - 5
+    assert not Coupling(master_ratio=(3, 3)).scaled and Coupling(slave_ratio=(2, 1)).scaled
+
+
+# ------------------------------------------------------------------- against controller-side
+@pytest.mark.parametrize("name,event", [
+    ("master_position", dict(SWITCH_B, activation="master_position", activation_position=200.0, master="relative",
+                             slave="relative")),
+    ("offsets", {"action": "offset", "at_position": 100.0, "master_offset": 10.0, "slave_offset": 0.05,
+                 "allow_jump": True}),
+    ("switch_offsets", dict(SWITCH_B, master="relative", master_offset=30.0, slave_offset=-0.02)),
+])
+def test_drive_side_set_points_are_the_controller_side_ones(name, event):
+    """A switch at a master position and MC_CamIn offsets: the drive's cam slot commands the
+    controller-side plan's targets bit for bit, every cycle (both see the master in whole counts;
+    the activation falls in the same cycle)."""
+    drive_plan, drive = _drive_targets(_scene("drive", [event]))
+    controller = _controller_targets([event])
+    assert drive_plan.events.switches[0].active_s is not None
+    assert np.array_equal(drive, controller.targets)
+    assert not np.array_equal(controller.targets, _controller_targets([]).targets)  # the event did something
+
+
+def test_drive_side_scaling_is_within_a_master_count_of_controller_side():
+    """MasterScaling 0.5 and SlaveScaling 1.25 at the period end: the drive scales the master it
+    receives in whole counts, the controller the exact one, so the table's master coordinate
+    differs by at most one count (two half-count roundings and a quarter count) and the slave by
+    at most SlaveScaling x the table's steepest slope per count, plus the rounding's count."""
+    event = {"action": "offset", "at_position": 100.0, "master_scaling": 0.5, "slave_scaling": 1.25,
+             "allow_jump": True}
+    _, drive = _drive_targets(_scene("drive", [event]))
+    controller = _controller_targets([event])
+    table = compile_cam(_scene("drive", [])).table
+    slope = np.max(np.abs(table.lookup(np.arange(table.master_counts), with_slope=True)[1])) / 65536.0
+    difference = np.abs(drive - controller.targets)
+    assert difference.max() <= 1 + 1.25 * slope
+    assert np.count_nonzero(difference > 1) < 0.1 * CYCLES  # only where the master count's rounding flips X
+    assert not np.array_equal(controller.targets, _controller_targets([]).targets)
+
+
+def test_a_master_position_the_drive_has_passed_is_refused():
+    """The drive activates where the master crosses the position: one it has passed at the
+    request would never come (controller-side it activates at once), so the scene is refused."""
+    event = dict(SWITCH_B, at_position=250.0, activation="master_position", activation_position=200.0)
+    scene = _scene("drive", [event])
+    with pytest.raises(InputError, match=r"event\[0\]\.activation_position: 200 should be ahead of the master"):
+        plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+
+
+def test_drive_side_offsets_and_master_position_over_the_bus_are_the_bus_free_run():
+    """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented) reach the drive over the bus
+    and give the bus-free path's physics bit for bit."""
+    from hil_sim.rig import run_scene
+
+    events = [dict(SWITCH_B, activation="master_position", activation_position=200.0, master="relative",
+                   slave="relative", master_offset=5.0, slave_offset=0.01)]
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data.update(cam_mode="drive", event=events, duration={"cycles": 700})
+    scene = parse_scene(data, base=SCENES_DIR, source="bus.toml").with_fidelity("ideal")
+    over_bus, bus_free = run_scene(scene), run_scene(scene, path="fast")
+    for name in ("following_error", "tracking_error"):
+        assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
+    assert over_bus.summary["events"]["switches"][0]["master"] == pytest.approx(200.0)

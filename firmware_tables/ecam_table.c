@@ -10,7 +10,8 @@
  *
  * Speed: ecam_table_init precomputes the format (shift counts, scale factors, reciprocals, the
  * clamped end positions) and picks one kernel per degree and step kind; a master inside the
- * period skips the wrap; the wrap itself is a divide-free Barrett reduction. Two arithmetic
+ * period skips the wrap; the wrap itself is a divide-free Barrett reduction (the expanded form's
+ * for h = 2^k, on cores that divide in one instruction, two 32-bit remainders). Two arithmetic
  * paths give the same bits: on 64-bit cores a product and an arithmetic shift; on 32-bit cores
  * (ECAM_WORD_BITS 32) asr(x * tau, F) becomes the high word of x * (tau * 2^(32-F)), so every
  * Horner step is two 32x32 multiplies and no variable 64-bit shift.
@@ -30,6 +31,20 @@
 #ifndef ECAM_MEMORY_BARRIER
 #define ECAM_MEMORY_BARRIER() ((void)0)
 #endif
+
+/* 1 when the core divides 32-bit integers in one instruction (ACLE's __ARM_FEATURE_IDIV: the
+ * Cortex-M3, M4, M7 UDIV/SDIV), which the expanded form's wrap of a table with h = 2^k then uses
+ * on 32-bit cores (ecam_poly_fold); 0 (the Cortex-M0, where `/` is a library call, and 64-bit
+ * cores, whose Barrett quotient is one multiply) keeps the divide-free wrap. Define it to 1 to
+ * run that path on another 32-bit build (the tests do, on the host). */
+#ifndef ECAM_HW_DIVIDE
+#if defined(__ARM_FEATURE_IDIV) && (__ARM_FEATURE_IDIV == 1)
+#define ECAM_HW_DIVIDE 1
+#else
+#define ECAM_HW_DIVIDE 0
+#endif
+#endif
+#define ECAM_POLY_FOLD ((ECAM_WORD_BITS != 64) && (ECAM_HW_DIVIDE != 0))
 
 /* Inlining hints only: the code is correct and C99 without them (FORMAT.md, deviations). */
 #if defined(__GNUC__)
@@ -2222,29 +2237,32 @@ static ECAM_INLINE uint32_t ecam_asr32_any(uint32_t x, unsigned s)
     return (uint32_t)(v >= 0 ? v >> s : ~(~v >> s));
 }
 
-/* Steps 2, 3 and 5 for a master inside [0, M), the coefficients of step 4 read from the buffer
- * (the rounding term is in c0): one load per coefficient, one multiply-shift-add per degree. */
-static ECAM_INLINE int32_t ecam_poly_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+/* Steps 2 and 3 for a master inside [0, M): the interval i, and tau in *tau. */
+static ECAM_INLINE uint32_t ecam_poly_locate(const ecam_poly *p, uint32_t local, bool pow2, uint32_t *tau)
 {
-    uint32_t tau_in;
     uint32_t i;
-    const int64_t *c;
+    uint32_t rest;
 
     if (pow2) {
-        tau_in = local & p->step_mask;
-        i = local >> p->step_shift;
-    } else {
-        uint32_t rest;
-
-        i = (uint32_t)(((uint64_t)local * p->step_recip) >> 32); /* see ecam_locate */
-        rest = local - i * p->step_counts;
-        if (rest >= p->step_counts) {
-            rest -= p->step_counts;
-            i++;
-        }
-        tau_in = (uint32_t)(((uint64_t)rest * p->tau_recip) >> 32);
+        *tau = local & p->step_mask;
+        return local >> p->step_shift;
     }
-    c = &p->coefficient[(size_t)i * (n + 1u)];
+    i = (uint32_t)(((uint64_t)local * p->step_recip) >> 32); /* see ecam_locate */
+    rest = local - i * p->step_counts;
+    if (rest >= p->step_counts) {
+        rest -= p->step_counts;
+        i++;
+    }
+    *tau = (uint32_t)(((uint64_t)rest * p->tau_recip) >> 32);
+    return i;
+}
+
+/* Step 5 of interval i at fraction tau_in, the coefficients of step 4 read from the buffer (the
+ * rounding term is in c0): one load per coefficient, one multiply-shift-add per degree. */
+static ECAM_INLINE int32_t ecam_poly_eval(const ecam_poly *p, uint32_t i, uint32_t tau_in, unsigned n)
+{
+    const int64_t *c = &p->coefficient[(size_t)i * (n + 1u)];
+
     {
 #if ECAM_WORD_BITS == 64
         const uint64_t tau = tau_in;
@@ -2270,34 +2288,24 @@ static ECAM_INLINE int32_t ecam_poly_at(const ecam_poly *p, uint32_t local, unsi
     }
 }
 
-/* Steps 2, 3 and 5 in 32-bit words, for a table whose Horner values all stay below 2^30 (see
+/* Steps 2, 3 and 5 for a master inside [0, M). */
+static ECAM_INLINE int32_t ecam_poly_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+{
+    uint32_t tau_in = 0u;
+    const uint32_t i = ecam_poly_locate(p, local, pow2, &tau_in);
+
+    return ecam_poly_eval(p, i, tau_in, n);
+}
+
+/* Step 5 in 32-bit words, for a table whose Horner values all stay below 2^30 (see
  * ecam_poly_narrow): with y = tau 2^(31-F) < 2^31, asr(r tau, F) = floor(2r y / 2^32), the high
  * word of one 32x32 signed product, exactly; the final sum fits int32 and W <= 30. */
-static ECAM_INLINE int32_t ecam_poly_narrow_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+static ECAM_INLINE int32_t ecam_poly_narrow_eval(const ecam_poly *p, uint32_t i, uint32_t tau_in, unsigned n)
 {
-    uint32_t tau_in;
-    uint32_t i;
-    const int64_t *c;
-    int32_t y;
-    int32_t r;
+    const int64_t *c = &p->coefficient[(size_t)i * (n + 1u)];
+    const int32_t y = (int32_t)(tau_in << p->narrow_lshift);
+    int32_t r = (int32_t)c[n];
 
-    if (pow2) {
-        tau_in = local & p->step_mask;
-        i = local >> p->step_shift;
-    } else {
-        uint32_t rest;
-
-        i = (uint32_t)(((uint64_t)local * p->step_recip) >> 32); /* see ecam_locate */
-        rest = local - i * p->step_counts;
-        if (rest >= p->step_counts) {
-            rest -= p->step_counts;
-            i++;
-        }
-        tau_in = (uint32_t)(((uint64_t)rest * p->tau_recip) >> 32);
-    }
-    c = &p->coefficient[(size_t)i * (n + 1u)];
-    y = (int32_t)(tau_in << p->narrow_lshift);
-    r = (int32_t)c[n];
     if (n == 5u) {
         r = (int32_t)c[4] + ecam_poly_mulhi(r, y);
         r = (int32_t)c[3] + ecam_poly_mulhi(r, y);
@@ -2313,7 +2321,51 @@ static ECAM_INLINE int32_t ecam_poly_narrow_at(const ecam_poly *p, uint32_t loca
     return ecam_i32(ecam_asr32_any((uint32_t)((int32_t)c[0] + ecam_poly_mulhi(r, y)), p->work_bits));
 }
 
+static ECAM_INLINE int32_t ecam_poly_narrow_at(const ecam_poly *p, uint32_t local, unsigned n, bool pow2)
+{
+    uint32_t tau_in = 0u;
+    const uint32_t i = ecam_poly_locate(p, local, pow2, &tau_in);
+
+    return ecam_poly_narrow_eval(p, i, tau_in, n);
+}
+
 static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m);
+
+#if ECAM_POLY_FOLD
+/*
+ * Steps 1..3 for a periodic table with h = 2^k whose period M = N 2^k is not a power of two, on a
+ * 32-bit core that divides in one instruction (ECAM_POLY_FOLD): i = floor(m / 2^k) mod N and
+ * tau = m mod 2^k for any int64 m = hi 2^32 + lo (hi signed, lo unsigned), by two 32-bit
+ * remainders instead of the table's 64-bit Barrett reduction (Cortex-M4 at -O2: 11 instructions
+ * with SDIV, MLS, MLA, UDIV, MLS, against about 27 for the four 32x32 products of the 64-bit
+ * quotient and its corrections; tests/test_cross_targets.py counts them).
+ * The algorithm: the residue of a two-word number modulo a one-word N, word by word (Knuth, TAOCP
+ * vol. 2, 3rd ed., 4.3.1, exercise 16, short division), with the words cut at bit k, not 32, so
+ * that the interval is the residue itself, and with the radix 2^(32-k) replaced by its residue
+ * c = 2^(32-k) mod N (r 2^(32-k) + u = r c + u modulo N), so that each step is one 32-bit
+ * remainder instead of a 64-by-32 division. (A 64-by-32 remainder of m by M itself, e.g. Moller
+ * and Granlund's preinverted division, "Improved division by invariant integers", IEEE Trans.
+ * Computers 60(2), 2011, Algorithm 4, needs a normalising shift of both words and two
+ * corrections: about as many instructions as the Barrett reduction on this core.)
+ * Why it is exact: floor(m / 2^k) = hi 2^(32-k) + floor(lo / 2^k) (0 <= k <= 30), and local =
+ * (floor(m / 2^k) mod N) 2^k + (m mod 2^k) since M = N 2^k. With r = hi % N (C99: the sign of hi,
+ * |r| < N) and B = N (N - 1), a multiple of N, x = r c + floor(lo / 2^k) + B is congruent to
+ * floor(m / 2^k) modulo N and lies in [N - 1, (N - 1)(2N - 1) + 2^(32-k) - 1], which
+ * ecam_poly_init requires below 2^32 (so N < 46342, and k >= 1): the uint32 sum, taken modulo
+ * 2^32, is x itself, and i = x mod N. (The Cortex-M4's UDIV and SDIV take 2 to 12 cycles, by their
+ * operands: Cortex-M4 Technical Reference Manual, ARM DDI 0439, 3.3.1, Table 3-1.)
+ */
+static ECAM_INLINE uint32_t ecam_poly_fold(const ecam_poly *p, int64_t m, uint32_t *tau)
+{
+    const uint32_t lo = (uint32_t)m;
+    const int32_t hi = ecam_i32((uint32_t)((uint64_t)m >> 32));
+    const int32_t rest = hi % (int32_t)p->fold_count;
+    const uint32_t x = ((uint32_t)rest * (uint32_t)p->fold_factor) + (lo >> p->step_shift) + p->fold_bias;
+
+    *tau = lo & p->step_mask;
+    return x % (uint32_t)p->fold_count;
+}
+#endif
 
 /* A master inside [0, M) straight through. Past it, the table's wrap (and a whole net stroke's
  * term, one multiply) inline, so that any int64 master costs one reduction more than the
@@ -2347,6 +2399,67 @@ static ECAM_INLINE int32_t ecam_poly_kernel_of(const ecam_poly *p, int64_t m, un
     }
     return ecam_i32((uint32_t)ecam_poly_at(p, local, n, pow2) + term);
 }
+
+#if ECAM_POLY_FOLD
+/* The kernel of a periodic table without a net stroke, h = 2^k and M = N 2^k not a power of two,
+ * on a 32-bit core with a divide instruction: a master inside [0, M) straight through, any other
+ * by ecam_poly_fold, which gives the interval and tau themselves (no other case to dispatch). */
+static ECAM_INLINE int32_t ecam_poly_fold_of(const ecam_poly *p, int64_t m, unsigned n, bool narrow)
+{
+    uint32_t tau = 0u;
+    uint32_t i;
+
+    if ((uint64_t)m < (uint32_t)p->master_limit) {
+        i = ecam_poly_locate(p, (uint32_t)m, true, &tau);
+    } else {
+        i = ecam_poly_fold(p, m, &tau);
+    }
+    if (narrow) {
+        return ecam_poly_narrow_eval(p, i, tau, n);
+    }
+    return ecam_poly_eval(p, i, tau, n);
+}
+
+static int32_t ecam_poly_fold_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 1u, false);
+}
+
+static int32_t ecam_poly_fold_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 3u, false);
+}
+
+static int32_t ecam_poly_fold_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 5u, false);
+}
+
+static int32_t ecam_poly_narrow_fold_linear(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 1u, true);
+}
+
+static int32_t ecam_poly_narrow_fold_cubic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 3u, true);
+}
+
+static int32_t ecam_poly_narrow_fold_quintic(const ecam_poly *p, int64_t m)
+{
+    return ecam_poly_fold_of(p, m, 5u, true);
+}
+
+/* The fold kernel of a degree, in 32-bit words (narrow) or not. */
+static ecam_poly_kernel ecam_poly_fold_kernel(unsigned degree, bool narrow)
+{
+    static const ecam_poly_kernel kernels[2][3] = {
+        {ecam_poly_fold_linear, ecam_poly_fold_cubic, ecam_poly_fold_quintic},
+        {ecam_poly_narrow_fold_linear, ecam_poly_narrow_fold_cubic, ecam_poly_narrow_fold_quintic}};
+
+    return kernels[narrow ? 1 : 0][degree / 2u];
+}
+#endif
 
 static int32_t ecam_poly_linear_pow2(const ecam_poly *p, int64_t m)
 {
@@ -2619,6 +2732,31 @@ static bool ecam_poly_narrow(const int64_t *c, const ecam_table *t)
     return true;
 }
 
+/* h = 2^k, M = N 2^k not a power of two, a periodic table without a net stroke, and a core with
+ * a divide instruction: the fold kernels (ecam_poly_fold), when N keeps its sum below 2^32. */
+static void ecam_poly_pick_fold(ecam_poly *p, const ecam_table *t, bool pow2)
+{
+#if ECAM_POLY_FOLD
+    if (pow2 && (p->outside == (uint8_t)ECAM_POLY_WRAP) && ((t->master_counts & p->master_mask) != 0u)) {
+        const uint64_t n = t->intervals;                              /* <= 2^31: no product wraps */
+        const uint64_t power = UINT64_C(1) << (32u - t->step_shift); /* 2^(32-k) */
+        const bool narrow = (p->kernel == ecam_poly_narrow_linear_pow2) || (p->kernel == ecam_poly_narrow_cubic_pow2) ||
+                            (p->kernel == ecam_poly_narrow_quintic_pow2);
+
+        if ((((n - 1u) * ((2u * n) - 1u)) + power) <= (UINT64_C(1) << 32)) { /* so n < 46342 */
+            p->fold_count = (uint16_t)n;
+            p->fold_factor = (uint16_t)(power % n);
+            p->fold_bias = (uint32_t)(n * (n - 1u));
+            p->kernel = ecam_poly_fold_kernel(t->degree, narrow);
+        }
+    }
+#else
+    (void)p;
+    (void)t;
+    (void)pow2;
+#endif
+}
+
 size_t ecam_poly_bytes(const ecam_table *t)
 {
     size_t words;
@@ -2723,6 +2861,8 @@ int ecam_poly_init(ecam_poly *p, const ecam_table *t, int64_t *buffer, size_t bu
     } else if (t->ramp != 0u) { /* version 3: the kernel runs inside the ramp's */
         p->ramp_kernel = p->kernel;
         p->kernel = ecam_poly_ramp;
+    } else {
+        ecam_poly_pick_fold(p, t, pow2);
     }
     return (int)ECAM_OK;
 }

@@ -5,7 +5,10 @@
  * FORMAT.md; this runtime follows it bit for bit, so it agrees exactly with the Python
  * CamTable.lookup, and its loader accepts exactly the blobs CamTable.from_bytes accepts.
  *
- * No allocation, no mutable globals, no floating point, no divide instruction in the lookup path.
+ * No allocation, no mutable globals, no floating point, no divide instruction in the lookup path
+ * (but one: on a core that divides in one instruction, ECAM_HW_DIVIDE, e.g. the Cortex-M3/M4/M7,
+ * ecam_poly_position wraps a table with h = 2^k by two 32-bit remainders; -DECAM_HW_DIVIDE=0
+ * keeps it divide-free).
  * The table refers to the caller's blob (flash or RAM) and never copies it: the blob must outlive
  * the table and must not change after ecam_table_init.
  *
@@ -291,7 +294,10 @@ struct ecam_poly {
     ecam_poly_kernel ramp_kernel; /* version 3: the kernel the ramp's kernel calls (else NULL) */
     uint32_t master_mask;      /* M - 1 (a period of M = 2^j: the wrap is m & (M - 1)) */
     uint8_t master_shift;      /* j when M = 2^j and the mask kernels run, else 0 */
+    uint16_t fold_count;       /* N, when h = 2^k and a divide instruction wraps (else 0) */
+    uint16_t fold_factor;      /* 2^(32-k) mod N (the same wrap) */
     uint32_t ramp;             /* version 3: S of step 8, as int32 bits (else 0) */
+    uint32_t fold_bias;        /* N (N - 1) (the same wrap) */
 };
 
 /* Bytes of int64 buffer the expansion of t needs; 0 when t is NULL or not ready. */

@@ -7,6 +7,7 @@ table compiled with ``horner_bits=32`` runs the narrow (32x32) kernels."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import subprocess
 import sys
@@ -28,8 +29,12 @@ ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "firmware_tables"
 TARGET_SOURCES = [FIRMWARE / name for name in ("ecam_target.c", "ecam_host_io.c", "ecam_table.c", "ecam_minimal.c")]
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wconversion", "-Wsign-conversion", "-pedantic", "-Werror", "-O2"]
+# "32-divide-sanitized": the path of a 32-bit core with a divide instruction (the Cortex-M3/M4's,
+# where ECAM_HW_DIVIDE is 1 by itself), which wraps a table with h = 2^k by two 32-bit remainders
+# (ecam_poly_fold) and every other by the Barrett reduction of "32", sanitized (a signed
+# division's overflow would be reported).
 PATHS = {"64": [], "64-no-int128": ["-DECAM_NO_INT128"], "32": ["-DECAM_WORD_BITS=32"],
-         "32-sanitized": ["-DECAM_WORD_BITS=32", *SANITIZE_FLAGS[4:]]}  # -O1 -g ... -fsanitize=...
+         "32-divide-sanitized": ["-DECAM_WORD_BITS=32", "-DECAM_HW_DIVIDE=1", *SANITIZE_FLAGS[4:]]}  # -O1 -g ...
 
 
 @pytest.fixture(scope="module")
@@ -91,6 +96,29 @@ def mask_tables() -> list:
     return out
 
 
+def fold_tables(rng) -> list:
+    """A step of h = 2^k and a period M = N 2^k that is not a power of two (the wrap of
+    ecam_poly_fold where the core divides): the seed cam at M = 9 x 2^13 in 32-bit and 64-bit
+    words; random tables at the fold's bound, (N - 1)(2N - 1) + 2^(32-k) <= 2^32 (N = 32767, k = 1:
+    the largest odd N it takes at k = 1), just past it (N = 32769: the Barrett wrap), at k = 28
+    (N = 3) and at N = 2310 = 2 x 3 x 5 x 7 x 11 (k = 10), and a clamp (no wrap)."""
+    drrd = load_cam(ROOT / "firmware_tables" / "cams" / "combination_drrd.toml")
+    low, high = drrd.slave_range
+    out = []
+    for kind in ("linear", "cubic", "quintic"):
+        for bits in (32, 64):
+            out.append((f"fold-drrd-{kind}-{bits}", compile_table(drrd, interp=kind, points=73, master_counts=9 * 2**13,
+                                                                  slave_counts_per_unit=2**20 / (high - low),
+                                                                  horner_bits=bits, certify=False)))
+    for degree in (1, 3, 5):
+        for M, N in ((65534, 32767), (65538, 32769), (3 * 2**28, 3), (2310 * 2**10, 2310)):
+            if N > 3000 and degree == 3:
+                continue  # (the bound is the same for every degree)
+            out.append((f"fold-random-{degree}-{M}-{N}", cb.make_blob(cb.random_table(rng, degree, True, M, N))))
+        out.append((f"fold-clamp-{degree}", cb.make_blob(cb.random_table(rng, degree, False, 2310 * 2**10, 2310))))
+    return out
+
+
 def test_horner_bits_32_gives_narrow_tables_and_says_what_it_costs():
     tables = dict(narrow_tables())
     assert all(narrow_horner(t) for t in tables.values())
@@ -103,7 +131,10 @@ def test_horner_bits_32_gives_narrow_tables_and_says_what_it_costs():
     assert narrow.report["max_error_counts"] <= narrow.report["predicted_error_counts"]
 
 
-def _cases():
+@functools.lru_cache(maxsize=1)
+def _cases() -> tuple:
+    """(name, blob, queries, expected position, expected slope): the same (seeded) cases for every
+    path, built and looked up in Python once."""
     out = []
     for csv in sorted((FIRMWARE / "vectors").glob("*.csv")):
         rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
@@ -114,6 +145,14 @@ def _cases():
         queries = np.concatenate([np.array([0, 1, m - 1, m, -1, -m, 2**63 - 1, -(2**63)], dtype=np.int64),
                                   rng.integers(-3 * m, 3 * m, 3000), rng.integers(-(2**63), 2**63 - 1, 1000)])
         out.append((name, table.to_bytes(), queries.astype(np.int64)))
+    edges = np.array([0, 1, -1, 2**31, -(2**31), 2**32 - 1, -(2**32), 2**63 - 1, -(2**63)], dtype=np.int64)
+    rng_fold = np.random.default_rng(2710)
+    for name, table in fold_tables(rng_fold):
+        blob = table if isinstance(table, bytes) else table.to_bytes()
+        m = CamTable.from_bytes(blob).master_counts
+        queries = np.concatenate([edges, np.array([m - 1, m, -m, -m - 1]), rng_fold.integers(-3 * m, 3 * m, 1000),
+                                  rng_fold.integers(-(2**63), 2**63 - 1, 3000, endpoint=True)])
+        out.append((name, blob, queries.astype(np.int64)))
     for degree in (1, 3, 5):
         for periodic in (True, False):
             for M, N in ((2**20, 64), (360_000, 60), (3, 1)):
@@ -123,22 +162,25 @@ def _cases():
         for M, N in ((2**20, 64), (360_000, 60)):
             table = dataclasses.replace(cb.random_table(rng, degree, True, M, N), net_num=-5 * M + 3, ramp=True)
             out.append((f"random-ramp-{degree}-{M}", cb.make_blob(table), cb.random_queries(rng, table, 2000)))
-    return out
+    expected = []
+    for name, blob, queries in out:
+        position, slope = CamTable.from_bytes(blob).lookup(queries, with_slope=True)
+        expected.append((name, blob, queries, cb.int32_wrap(np.asarray(position)), np.asarray(slope)))
+    return tuple(expected)
 
 
 @pytest.mark.parametrize("path", list(PATHS))
 def test_the_expanded_form_looks_up_bit_for_bit(drivers, tmp_path, path):
     """ecam_target lookup checks ecam_poly_position against ecam_table_position on every query
     (exit 1 on a difference); the outputs are compared with the Python lookup here."""
-    for k, (name, blob, queries) in enumerate(_cases()):
+    for name, blob, queries, position, slope in _cases():
         (tmp_path / "t.bin").write_bytes(blob)
         queries.astype("<i8").tofile(tmp_path / "q.i64")
         proc = subprocess.run([str(drivers[path]), "lookup", "t.bin", "q.i64", "o.bin"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, f"{path} {name}: {proc.stdout} {proc.stderr}"
         got = np.fromfile(tmp_path / "o.bin", dtype="<i4").astype(np.int64).reshape(-1, 2)
-        position, slope = CamTable.from_bytes(blob).lookup(queries, with_slope=True)
-        assert np.array_equal(got[:, 0], cb.int32_wrap(np.asarray(position))), f"{path} {name}"
+        assert np.array_equal(got[:, 0], position), f"{path} {name}"
         assert np.array_equal(got[:, 1], slope), f"{path} {name}"
 
 

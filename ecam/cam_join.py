@@ -21,11 +21,22 @@ coordinates are placed, which PLCopen defines per axis:
   relative: "the origin of the cam plate coordinate system is at the axis position ... at the
   time of coupling or cam plate switching".
 
-So the join compares A's end (its last segment at its end, the first period) with B at its entry
-master position (0 when the master is relative; A's period, wrapped into B's, when absolute),
-offset by A's end position when the slave is relative. Position, velocity and acceleration
-jumps are errors, a jerk jump a warning, as :meth:`ecam.CamProfile.check` reports a joint.
-Both cams must use the same master and slave units (derivatives are per master unit).
+The switch happens at a master position ``at`` (by default A's first period end, its
+master_period). The join compares A's left limit there with B's right limit at its entry X,
+offset by A's position there when the slave is relative. The master relative enters B at X = 0.
+The master absolute evaluates B at the absolute master position itself, X = ``at`` (PLCopen
+MasterAbsolute: the cam's master coordinate is the axis's), and a periodic cam there is what it
+is everywhere in ecam: wrapped into its period, its position continuing by its net stroke per
+period, so a cam with a net stroke at X includes floor(X / period) net strokes; A's left limit at
+its N-th period end includes N - 1 of its own. That is what the firmware's table lookup does
+(FORMAT.md, step 7: :class:`ecam.table_pair.SwitchPair`, ``ecam_switch_pair``) and what the rig's
+``[[event]]`` switches do (:mod:`hil_sim.events`), so the join checked here is the join they make:
+the rotary knife switched to itself at its period end with master and slave absolute changes
+nothing; with the master relative it restarts at 0 (a jump of minus its position).
+
+Position, velocity and acceleration jumps are errors, a jerk jump a warning, as
+:meth:`ecam.CamProfile.check` reports a joint. Both cams must use the same master and slave units
+(derivatives are per master unit).
 """
 
 from __future__ import annotations
@@ -52,11 +63,14 @@ class Join:
     Attributes
     ----------
     master : float
-        The master axis position of the join: A's period end [master units].
+        The master axis position of the join (``at``; by default A's period end) [master units].
     entry : float
-        Where B is entered, in B's own master coordinate [master units].
+        Where B is entered, in B's own master coordinate X [master units]: 0 with the master
+        relative, the master position itself with it absolute (not wrapped: a periodic B is
+        evaluated there with the net strokes of the periods before).
     slave_offset : float
-        What is added to B's positions: A's end position when the slave is relative, else 0.
+        What is added to B's positions: A's position at the join when the slave is relative,
+        else 0.
     master_coordinates, slave_coordinates : {"absolute", "relative"}
     left, right : tuple of float
         A's end and B's entry (offset applied): position, velocity, acceleration, jerk (slave
@@ -83,16 +97,21 @@ class Join:
 
 
 def join_cams(first: CamProfile, then: CamProfile, *, master: str = "absolute",
-              slave: str = "absolute") -> Join:
-    """The join of ``first``'s period end to ``then``'s entry (see the module docstring).
+              slave: str = "absolute", at: float | None = None) -> Join:
+    """The join of ``first`` to ``then`` at master ``at`` (see the module docstring).
 
     Parameters
     ----------
     first, then : CamProfile
-        Cam A, running when the switch is made, and cam B, switched in at A's period end.
+        Cam A, running when the switch is made, and cam B, switched in at ``at``.
     master, slave : {"absolute", "relative"}
         PLCopen ``MC_CamTableSelect.MasterAbsolute`` / ``SlaveAbsolute`` (absolute: TRUE).
         The default, absolute, is CODESYS's initial value of both inputs.
+    at : float, optional
+        The master position of the switch [master units]: A's left limit and B's entry are taken
+        there. Default: A's first period end (``first.master_period``); ``N x master_period`` is
+        the end of A's N-th period, where a switch queued for the period end happens. Within
+        A's master range for an A that does not repeat.
 
     Returns
     -------
@@ -103,7 +122,8 @@ def join_cams(first: CamProfile, then: CamProfile, *, master: str = "absolute",
     InputError
         A mode other than absolute or relative; cams in different master or slave units; an
         absolute master that enters a cam which is not periodic outside its master range
-        (CODESYS reports SMC_CI_MASTER_OUT_OF_SCALE there).
+        (CODESYS reports SMC_CI_MASTER_OUT_OF_SCALE there); ``at`` outside the master range of
+        an A that does not repeat.
     """
     for cam, field in ((first, "cam"), (then, "then")):
         if not isinstance(cam, CamProfile):
@@ -115,20 +135,20 @@ def join_cams(first: CamProfile, then: CamProfile, *, master: str = "absolute",
             raise validate.fail(f"then.{unit}", getattr(then, unit),
                                 f"{validate.show(getattr(first, unit))}, the first cam's (derivatives "
                                 "are compared per master unit)")
-    last = first.segments[-1]
-    join_master = last.master_end
-    # a segment ends at its slave_end by definition; its law evaluated there may miss by the
-    # rounding of a steep polynomial
-    left = (last.slave_end, *(last.at(1.0, order) for order in range(1, len(ORDER_NAMES))))
+    if at is None:
+        at = first.master_period
+    at = validate.number("at", validate.plain(at))
+    if not first.periodic and not 0.0 < at <= first.master_period:
+        raise validate.fail("at", at, f"within {first.name or 'the first cam'}'s master range "
+                            f"(0, {first.master_period:g}] (it does not repeat)")
+    left = _left_limit(first, at)
     if master == "relative":
         entry = 0.0
-    elif then.periodic:
-        entry = join_master % then.master_period
-    elif 0.0 <= join_master <= then.master_period:
-        entry = join_master
+    elif then.periodic or 0.0 <= at <= then.master_period:
+        entry = at
     else:
         raise InputError(f"master: 'absolute' should be 'relative' here: the join at master "
-                         f"{join_master:g} lies outside {then.name or 'then'}'s master range "
+                         f"{at:g} lies outside {then.name or 'then'}'s master range "
                          f"0..{then.master_period:g}, which does not repeat")
     # a non-periodic B entered at its very end has nothing to its right: take its left limit
     side = "left" if (not then.periodic and entry == then.master_period) else "right"
@@ -136,7 +156,7 @@ def join_cams(first: CamProfile, then: CamProfile, *, master: str = "absolute",
     offset = left[0] if slave == "relative" else 0.0
     values[0] += offset
     right = tuple(values)
-    scale = _local_scale(last, then, entry)
+    scale = _local_scale(_segment_at(first, at, "left"), then, entry)
     found = []
     for order in range(len(ORDER_NAMES)):
         a, b = left[order], right[order]
@@ -144,17 +164,42 @@ def join_cams(first: CamProfile, then: CamProfile, *, master: str = "absolute",
         noise = relative * max(abs(a), abs(b)) + 1e-12 * scale[order]
         if abs(b - a) > noise:
             found.append((order, a, b))
-    join = Join(join_master, entry, offset, master, slave, left, right, CheckReport(()))
-    return replace(join, report=CheckReport(tuple(Discontinuity(join_master, order, a, b, join.where)
+    join = Join(at, entry, offset, master, slave, left, right, CheckReport(()))
+    return replace(join, report=CheckReport(tuple(Discontinuity(at, order, a, b, join.where)
                                                   for order, a, b in found)))
+
+
+def _left_limit(first: CamProfile, at: float) -> tuple:
+    """A's left limit at ``at``: position (with the net strokes of the periods before),
+    velocity, acceleration, jerk per master unit^k."""
+    period = first.master_period
+    if (at % period == 0.0) if first.periodic else at == period:
+        # a period end: a segment ends at its slave_end by definition (its law evaluated there
+        # may miss by the rounding of a steep polynomial), the periods before add their strokes
+        last = first.segments[-1]
+        turns = round(at / period) if first.periodic else 1
+        return (last.slave_end + (turns - 1) * (first.net_stroke or 0.0),
+                *(last.at(1.0, order) for order in range(1, len(ORDER_NAMES))))
+    return tuple(float(first(np.array([at]), order, side="left")[0]) for order in range(len(ORDER_NAMES)))
+
+
+def _segment_at(cam: CamProfile, x: float, side: str):
+    """The segment of ``cam`` that holds master x (wrapped into a periodic cam's period), the one
+    before a joint on the left side."""
+    if cam.periodic:
+        x = x % cam.master_period
+        if side == "left" and x == 0.0:
+            return cam.segments[-1]
+    starts = [segment.master_start for segment in cam.segments]
+    index = int(np.searchsorted(starts, x, side="left" if side == "left" else "right")) - 1
+    return cam.segments[max(0, min(index, len(cam.segments) - 1))]
 
 
 def _local_scale(last, then: CamProfile, entry: float) -> list[float]:
     """What the two segments at the join can produce per derivative: their largest
     |stroke| / span**order times the law's peak (Cv, Ca, Cj where finite): the size float noise
     is measured against, as :meth:`CamProfile.jumps` measures it against the neighbours."""
-    index = int(np.searchsorted([s.master_start for s in then.segments], entry, side="right")) - 1
-    entered = then.segments[max(0, min(index, len(then.segments) - 1))]
+    entered = _segment_at(then, entry, "right")
     out = []
     for order in range(len(ORDER_NAMES)):
         peaks = []

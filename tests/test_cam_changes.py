@@ -44,30 +44,56 @@ def test_a_cam_that_returns_to_its_start_joins_itself_in_every_coordinate():
         for slave in ("absolute", "relative"):
             join = join_cams(cam, cam, master=master, slave=slave)
             assert join.report.ok and not join.report.discontinuities, (master, slave)
-            assert join.master == 360.0 and join.entry == 0.0
+            assert join.master == 360.0 and join.entry == (360.0 if master == "absolute" else 0.0)
 
 
-def test_a_net_stroke_cam_jumps_back_by_its_net_stroke_unless_the_slave_is_relative():
-    """CODESYS MC_CamIn.StartMode absolute: "evaluated independent of the current position of the
-    slave" -- the knife ends a period at 360 deg and restarts its table at 0: a jump of -net
-    stroke. Relative adds the slave's position: continuous."""
+def test_a_net_stroke_cam_is_entered_with_the_net_strokes_of_the_periods_before():
+    """PLCopen MasterAbsolute: the cam is evaluated at the absolute master position, and a
+    periodic cam with a net stroke there includes floor(x / period) net strokes (as the table
+    lookup and the rig evaluate it). The knife switched to itself at the end of its N-th period:
+    master and slave absolute change nothing; master relative restarts the table at 0 (a jump of
+    -N x 360); slave relative adds the slave's position to B's own (+N x 360 absolute, nothing
+    relative)."""
     knife = load_cam(KNIFE)
-    absolute = join_cams(knife, knife)
-    (jump,) = absolute.report.errors
-    assert jump.order == 0 and jump.jump == pytest.approx(-knife.net_stroke, abs=1e-9)
-    assert absolute.report.continuous(-1) is True and not absolute.report.at(360.0, 1)
-    relative = join_cams(knife, knife, slave="relative")
-    assert relative.report.ok and relative.slave_offset == pytest.approx(knife.net_stroke)
+    for turns in (1, 3):
+        at = turns * knife.master_period
+        jumps = {}
+        for master in ("absolute", "relative"):
+            for slave in ("absolute", "relative"):
+                join = join_cams(knife, knife, master=master, slave=slave, at=at)
+                assert join.left[0] == pytest.approx(turns * knife.net_stroke, abs=1e-9)
+                assert all(d.order == 0 for d in join.report.discontinuities)
+                jumps[master, slave] = sum(d.jump for d in join.report.errors)
+        net = turns * knife.net_stroke
+        assert jumps == {("absolute", "absolute"): 0, ("relative", "relative"): 0,
+                         ("relative", "absolute"): pytest.approx(-net, abs=1e-9),
+                         ("absolute", "relative"): pytest.approx(net, abs=1e-9)}, turns
+        assert join_cams(knife, knife, at=at).entry == at  # not wrapped: its own coordinate
+
+
+def test_a_switch_inside_a_period_joins_the_left_and_right_limits_there():
+    """At 100 deg, inside the knife's catch-up (and two periods later), the knife switched to
+    itself absolutely changes nothing; a cam that does not repeat is joined within its range."""
+    knife = load_cam(KNIFE)
+    assert join_cams(knife, knife, at=100.0).report.ok
+    assert join_cams(knife, knife, at=100.0 + 2 * 360.0).report.ok
+    assert not join_cams(knife, knife, at=100.0, master="relative").report.ok
+    once = moving(period=180.0)
+    with pytest.raises(InputError, match=r"at: 200 should be within feed's master range \(0, 180\]"):
+        join_cams(once, once, at=200.0, master="relative")
+    join = join_cams(once, moving(name="next"), at=150.0, master="relative")
+    assert join.left == pytest.approx(tuple(float(once(150.0, k, side="left")) for k in range(4)))
 
 
 def test_an_absolute_master_enters_the_next_cam_where_the_master_stands():
-    """A period of 360 switched to a periodic cam of 240: absolutely, B is entered at 360 mod 240
-    = 120 (CODESYS: "the cam is started at the current master position"); relatively at 0."""
+    """A period of 360 switched to a periodic cam of 240: absolutely, B is evaluated at the
+    master position 360, 120 into its second period (CODESYS: "the cam is started at the current
+    master position"); relatively at 0."""
     first = load_cam(DRRD)
     short = CamProfile.from_segments([Segment.from_span(80.0), Segment.from_span(80.0, 1.0, "cycloidal"),
                                       Segment.from_span(80.0, -1.0, "cycloidal")], slave_unit="in", name="short")
     join = join_cams(first, short)
-    assert join.entry == 120.0
+    assert join.entry == 360.0  # B's own coordinate: 120 into its second period
     assert join.right[0] == pytest.approx(float(short(120.0)))
     assert join.right[1] == pytest.approx(float(short(120.0, 1)))
     assert not join.report.ok and {d.order for d in join.report.errors} >= {0, 1}
@@ -169,14 +195,17 @@ def test_transition_input_is_checked():
 # ------------------------------------------------------------------------------ the CLI
 
 def test_check_then_reports_the_join_like_check(tmp_path):
-    run = ecam_cli("check", KNIFE, "--then", KNIFE, "--json")
+    run = ecam_cli("check", KNIFE, "--then", KNIFE, "--master", "relative", "--at-period", 2, "--json")
     assert run.returncode == 1, run.stderr
     data = json.loads(run.stdout)
     assert {"cam", "then", "ok", "errors", "warnings", "discontinuities", "join"} <= set(data)
     assert data["ok"] is False and data["discontinuities"][0]["quantity"] == "position"
-    assert data["join"]["entry"] == 0.0 and data["join"]["master_coordinates"] == "absolute"
-    run = ecam_cli("check", KNIFE, "--then", KNIFE, "--slave", "relative")
+    assert data["discontinuities"][0]["jump"] == pytest.approx(-720.0)  # restarted at 0 from 720
+    assert data["join"]["entry"] == 0.0 and data["join"]["master"] == 720.0
+    assert data["join"]["master_coordinates"] == "relative"
+    run = ecam_cli("check", KNIFE, "--then", KNIFE)
     assert run.returncode == 0 and "continuous in position, velocity, acceleration and jerk" in run.stdout
+    assert "entered at 360 deg, with 1 x its net stroke +360 deg" in run.stdout
     run = ecam_cli("check", DRRD, "--master", "relative")
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and "--then" in run.stderr
 

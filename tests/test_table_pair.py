@@ -294,12 +294,13 @@ def test_each_switch_brings_its_own_mc_camin_offsets(driver):
     assert [out[-2][1], out[-1][1]] == [tables[DRRD].lookup(M + S - 520) + 9, tables[DRRD].lookup(M + S - 519) + 9]
 
 
-def test_with_the_master_relative_the_firmware_jumps_as_ecam_check_predicts(driver):
+def test_the_firmware_jumps_as_ecam_check_predicts(driver):
     """The knife switched to itself at its first period end: the position jump in counts is
-    ecam.cam_join's (`ecam check --then`) times the table's counts per degree when the master is
-    relative; with the master absolute the table's own coordinates carry the net stroke (the
-    documented difference): no jump with the slave absolute, the slave's position at the
-    boundary (+360 deg) with it relative, where cam_join says -360 deg and 0."""
+    ecam.cam_join's (`ecam check --then`) times the table's counts per degree in all four
+    placements. With the master absolute both evaluate the table at the master position with the
+    net stroke of the period before: no jump with the slave absolute, the slave's position at the
+    boundary (+360 deg) with it relative; with the master relative a restart at 0 (-360 deg) and
+    no jump (tests/test_switch_rule.py: the same for a pair of net strokes, the rig included)."""
     from ecam.cam_join import join_cams
 
     table = driver[1][KNIFE]
@@ -317,8 +318,8 @@ def test_with_the_master_relative_the_firmware_jumps_as_ecam_check_predicts(driv
             jumps[master, slave] = (out[-1][1] - table.lookup(M), round((join.right[0] - join.left[0]) * per_unit))
     assert jumps["relative", "absolute"] == (-360_000, -360_000)
     assert jumps["relative", "relative"] == (0, 0)
-    assert jumps["absolute", "absolute"] == (0, -360_000)
-    assert jumps["absolute", "relative"] == (360_000, 0)
+    assert jumps["absolute", "absolute"] == (0, 0)
+    assert jumps["absolute", "relative"] == (360_000, 360_000)
 
 
 # ------------------------------------------------------------------------------ tables that do not repeat

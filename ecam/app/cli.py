@@ -143,6 +143,7 @@ def add_join_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--slave", choices=("absolute", "relative"),
                         help="with --then: the next cam's slave coordinates, PLCopen MC_CamTableSelect."
                              "SlaveAbsolute (default: absolute)")
+    join_command.add_at_arguments(parser)
 
 
 # What each command's --help says above its options, and its exit status below them.

@@ -50,7 +50,9 @@ streams (shifted by the phase) and the commands a controller sends the drive's c
 (:mod:`hil_sim.drive.cam_slot`) by SDO: the new table downloaded into 0x2000, its coordinates
 into 0x2001:05 and 0x2001:07..0C (MC_CamIn's offsets and scaling), a master position into
 0x2001:06, and the activation into 0x2001:01 (1 at once, 3 at the running table's period end, 4
-at the master position), in the cycle the event is requested. The bus-free path (:mod:`hil_sim.rig.fast`) applies
+at the master position), in the cycle the event is requested; a cam-out writes the profile
+limits (0x6083, 0x6084, 0x60A4:01) and 0x2001:01 = 5, and the drive stops by itself from the
+cam's state in the next cycle (:mod:`hil_sim.drive.cam_out`), where the ideal path's stop starts. The bus-free path (:mod:`hil_sim.rig.fast`) applies
 the same commands to its cam slot. Both paths check against the same ideal slave path.
 """
 
@@ -71,12 +73,13 @@ from ecam.table_spec import TableSpec
 from hil_sim.drive.cam_coupling import scaling_ratio
 from hil_sim.drive.cam_slot import (
     CAM_COMMAND_ACTIVATE, CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION, CAM_COMMAND_ACTIVATE_AT_PERIOD_END,
-    SWITCH_MASTER_RELATIVE, SWITCH_SLAVE_RELATIVE,
+    CAM_COMMAND_CAM_OUT, SWITCH_MASTER_RELATIVE, SWITCH_SLAVE_RELATIVE,
 )
 from hil_sim.drive.objects import (
     CAM_ACTIVATION_POSITION, CAM_COMMAND, CAM_MASTER_OFFSET, CAM_MASTER_SCALING_DENOMINATOR,
     CAM_MASTER_SCALING_NUMERATOR, CAM_SLAVE_OFFSET, CAM_SLAVE_SCALING_DENOMINATOR,
-    CAM_SLAVE_SCALING_NUMERATOR, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD,
+    CAM_SLAVE_SCALING_NUMERATOR, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, PROFILE_ACCELERATION,
+    PROFILE_DECELERATION, PROFILE_JERK,
 )
 from hil_sim import ramp_in
 from hil_sim.event_spec import Event
@@ -504,7 +507,6 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     profile, scale = cam.profile, cam.scale
     drive_side = master_end is not None
     if drive_side:
-        _check_drive_side(events)
         ramp_in.refuse_drive_side(events)
     program = _Program(master, per_unit, end_s)
     program.pieces.append(_Piece(0.0, profile, cam.table, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, per_unit))
@@ -526,6 +528,9 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
             program.phases.plans.append((requested, segment))
             motions.append(_motion(event, requested, segment))
         elif event.action == "cam_out":
+            if drive_side:  # the drive stops from the cam's state in the cycle after the write
+                requested, writes = _drive_cam_out(event, requested, cycle_s, t_set, scale)
+                commands += writes
             state = program.slave_state_s(requested)
             segment = _cam_out_segment(event, state)
             program.out = (requested, segment)
@@ -552,14 +557,27 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     return targets, velocities, reference, outcome, master_end
 
 
-def _check_drive_side(events: tuple) -> None:
-    """What the drive's cam slot takes: switches and offsets activated at once, at the period
-    end or at a master position, absolute or relative, with MC_CamIn's offsets and scaling
-    (0x2001:05..0C), and phase shifts (the controller shifts the master it streams)."""
-    for event in events:
-        if event.action == "cam_out":
-            raise InputError(f"{event.label}.action: {event.action!r} should be 'switch', 'offset' "
-                             "or 'phase' with cam_mode 'drive' (a cam-out runs controller-side)")
+def _drive_cam_out(event: Event, requested: float, cycle_s: float, t_set: np.ndarray,
+                   scale: float) -> tuple:
+    """A cam-out drive-side: the profile limits into 0x6083, 0x6084 and 0x60A4:01 [counts/s^n]
+    and 0x2001:01 = 5 after the SYNC of the cycle it is requested in; the drive stops from the
+    cam's state in the next cycle, whose set-point time is returned as the stop's start."""
+    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), len(t_set) - 1)
+    if cycle + 1 >= len(t_set):  # the run ends before the drive acts
+        return requested, []
+    writes = []
+    for key, name, value in ((PROFILE_ACCELERATION, "max_acceleration", event.max_acceleration),
+                             (PROFILE_DECELERATION, "max_acceleration", event.max_acceleration),
+                             (PROFILE_JERK, "max_jerk", event.max_jerk)):
+        counts = round(value * scale)
+        if not 1 <= counts <= 0xFFFFFFFF:
+            order = 2 if name == "max_acceleration" else 3
+            raise InputError(f"{event.label}.{name}: {value:g} should be within {1 / scale:g}.."
+                             f"{0xFFFFFFFF / scale:g} slave units/s^{order} with cam_mode 'drive' "
+                             f"(0x{key.index:04X} is UNSIGNED32 counts/s^{order})")
+        writes.append(DriveCommand(cycle, *key, counts, event.index))
+    writes.append(DriveCommand(cycle, *CAM_COMMAND, CAM_COMMAND_CAM_OUT, event.index))
+    return float(t_set[cycle + 1]), writes
 
 
 def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: float,
@@ -686,7 +704,8 @@ def _sample(program: _Program, cam, t_set, t_end, targets, velocities, reference
             states = np.zeros((idx.size, 3))
             states[:, 0] = segment.state(segment.duration)[0]
             moving = times[idx] - start < segment.duration
-            states[moving] = [segment.state(tt - start) for tt in times[idx][moving]]
+            if moving.any():  # a cam-out from rest has no duration
+                states[moving] = [segment.state(tt - start) for tt in times[idx][moving]]
             if kind == "set":
                 targets[idx] = np.rint(states[:, 0] * scale).astype(np.int64)
                 velocities[idx] = states[:, 1] * scale

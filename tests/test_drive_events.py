@@ -32,6 +32,9 @@ from hil_sim.scene import parse_scene
 
 CYCLES = 1500  # 1.5 s at 60 rpm: the switch at 360 deg and half a period of the new cam
 SWITCH_B = {"action": "switch", "cam": "cams/product_b.toml", "at_position": 100.0, "allow_jump": True}
+# the changeover's stop (in/s, in/s^2, in/s^3)
+CAM_OUT = {"action": "cam_out", "at_position": 120.0, "max_velocity": 10.0, "max_acceleration": 200.0,
+           "max_jerk": 20000.0}
 
 
 def _scene(mode: str, events: list, speed_rpm: float = 60.0):
@@ -196,16 +199,67 @@ def test_a_master_position_the_drive_has_passed_is_refused():
 
 
 def test_drive_side_offsets_and_master_position_over_the_bus_are_the_bus_free_run():
-    """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented) reach the drive over the bus
-    and give the bus-free path's physics bit for bit."""
+    """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented; the cam-out's 0x6083, 0x6084,
+    0x60A4:01) reach the drive over the bus and give the bus-free path's physics bit for bit."""
     from hil_sim.rig import run_scene
 
     events = [dict(SWITCH_B, activation="master_position", activation_position=200.0, master="relative",
-                   slave="relative", master_offset=5.0, slave_offset=0.01)]
+                   slave="relative", master_offset=5.0, slave_offset=0.01), dict(CAM_OUT, at_position=300.0)]
     data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
-    data.update(cam_mode="drive", event=events, duration={"cycles": 700})
+    data.update(cam_mode="drive", event=events, duration={"cycles": 900})
     scene = parse_scene(data, base=SCENES_DIR, source="bus.toml").with_fidelity("ideal")
     over_bus, bus_free = run_scene(scene), run_scene(scene, path="fast")
     for name in ("following_error", "tracking_error"):
         assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
     assert over_bus.summary["events"]["switches"][0]["master"] == pytest.approx(200.0)
+    assert over_bus.summary["events"]["motions"][0]["duration_s"] > 0.03  # a stop mid-rise
+
+
+# ------------------------------------------------------------------------------------ cam-out
+def test_a_drive_side_cam_out_stops_where_the_controller_side_plan_stops():
+    """0x2001:01 = 5 (MC_CamOut) mid-rise at 120 deg: the drive plans its jerk-limited stop in
+    the cycle after the write from the cam's state there, within 0x6083/0x6084/0x60A4:01, and the
+    scene's ideal path stops from the exact cam's state at that cycle's time. The drive's set
+    points follow it within what the drive cannot know: the master in whole counts (half a count
+    x the steepest slope), the table's rounding (a count) and its observed master speed; they end
+    at rest, and their second differences stay within the deceleration (plus the rounding's
+    two counts per cycle^2)."""
+    plan, drive = _drive_targets(_scene("drive", [CAM_OUT]))
+    motion = plan.events.motions[0]
+    scale = 100000.0  # counts/in
+    table = compile_cam(_scene("drive", [])).table
+    slope = np.max(np.abs(table.lookup(np.arange(table.master_counts), with_slope=True)[1])) / 65536.0
+    assert np.max(np.abs(drive - plan.targets)) <= 2 + 0.5 * slope
+    start = int(round(motion.start_s / 0.001)) - 1  # t_set = (k + 1 lead cycle) x 1 ms
+    end = start + int(np.ceil(motion.duration_s / 0.001)) + 1
+    assert np.all(drive[end:] == drive[end]) and drive[end] != drive[start]
+    second = np.diff(drive[start:end + 1], 2) / 0.001**2
+    assert np.max(np.abs(second)) <= 200.0 * scale + 2 / 0.001**2
+    assert not np.array_equal(plan.targets, _controller_targets([]).targets)
+
+
+def test_the_cam_out_command_needs_a_table_and_shows_in_the_status():
+    from canopen.sdo import SdoAbortedError
+
+    from hil_sim.drive.cam_slot import CAM_COMMAND_CAM_OUT, CAM_STATUS_CAM_OUT
+
+    empty = CamSlot({CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: 0})
+    with pytest.raises(SdoAbortedError):
+        empty.write_command(CAM_COMMAND_CAM_OUT)
+    seed, _ = _tables()
+    slot = _slot(seed)
+    for master in (100, 137):
+        slot.values[MASTER_POSITION] = master
+        slot.target(0.001)
+    slot.write_command(CAM_COMMAND_CAM_OUT)
+    assert slot.values[CAM_STATUS] & CAM_STATUS_CAM_OUT
+    slot.verify_download(seed.to_bytes())
+    slot.write_command(CAM_COMMAND_ACTIVATE)  # a new engagement ends it
+    assert not slot.values[CAM_STATUS] & CAM_STATUS_CAM_OUT and slot.out is None
+
+
+def test_a_cam_out_limit_past_unsigned32_counts_is_refused():
+    scene = _scene("drive", [dict(CAM_OUT, max_jerk=1e5)])  # 1e10 counts/s^3
+    with pytest.raises(InputError, match=r"event\[0\]\.max_jerk: 100000 should be within 1e-05\.\.42949\.7 slave "
+                       r"units/s\^3 with cam_mode 'drive' \(0x60A4 is UNSIGNED32"):
+        plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)

@@ -235,7 +235,9 @@ RANGES = [
     (0x60C2, 2, 1, drv.ABORT_VALUE_TOO_HIGH),
     (0x6007, 0, 4, drv.ABORT_VALUE_TOO_HIGH),  # abort connection option code 0..3
     (0x6007, 0, -1, drv.ABORT_VALUE_TOO_LOW),
-    (0x2001, 1, 5, drv.ABORT_VALUE_TOO_HIGH),  # cam command 0..4 (3: at the period end, 4: at a master position)
+    (0x2001, 1, 6, drv.ABORT_VALUE_TOO_HIGH),  # cam command 0..5 (3: period end, 4: master position, 5: cam-out)
+    (0x6084, 0, 0, drv.ABORT_VALUE_TOO_LOW),  # profile deceleration 0: the stop would never end
+    (0x60A4, 1, 0, drv.ABORT_VALUE_TOO_LOW),  # profile jerk 0
     (0x2001, 5, 4, drv.ABORT_VALUE_TOO_HIGH),  # switch coordinates: two bits
     (0x2001, 9, 0, drv.ABORT_VALUE_TOO_LOW),  # a master scaling numerator of 0 (issue 23)
     (0x2001, 12, 0, drv.ABORT_VALUE_TOO_LOW),  # a slave scaling denominator of 0: divides

@@ -44,12 +44,13 @@ from canopen.sdo import SdoAbortedError
 from ecam import CamTable
 from ecam.errors import TableFormatError
 from hil_sim.drive.cam_coupling import Coupling
+from hil_sim.drive.cam_out import CamOut
 from hil_sim.drive.objects import (
     ACTIVE_CAM_TABLE_CRC32, CAM_ACTIVATION_POSITION, CAM_COMMAND, CAM_LAST_ERROR_CODE,
     CAM_LAST_ERROR_MESSAGE, CAM_MASTER_OFFSET, CAM_MASTER_SCALING_DENOMINATOR,
     CAM_MASTER_SCALING_NUMERATOR, CAM_MODE, CAM_SLAVE_OFFSET, CAM_SLAVE_SCALING_DENOMINATOR,
     CAM_SLAVE_SCALING_NUMERATOR, CAM_STATUS, CAM_SWITCH_MODE, CAM_TABLE_DOWNLOAD, MASTER_POSITION,
-    PENDING_CAM_TABLE_CRC32,
+    PENDING_CAM_TABLE_CRC32, PROFILE_ACCELERATION, PROFILE_DECELERATION, PROFILE_JERK,
 )
 from hil_sim.drive.sdo import ABORT_CANNOT_STORE, ABORT_DEVICE_STATE, ABORT_INVALID_VALUE
 from hil_sim.int32 import wrap_int32
@@ -63,11 +64,15 @@ CAM_COMMAND_ACTIVATE_AT_PERIOD_END = 3
 #: referring to the absolute master axis position"; MC3 ECamActivationMode.AtMasterAbsolutePosition:
 #: "Activation occurs when master axis position crosses the activation position"): 0x2001:06.
 CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION = 4
+#: PLCopen MC_CamOut: leave the cam and stop, jerk-limited, within 0x6083/0x6084/0x60A4:01
+#: (:mod:`hil_sim.drive.cam_out`).
+CAM_COMMAND_CAM_OUT = 5
 CAM_STATUS_ACTIVE = 0x01
 CAM_STATUS_PENDING = 0x02
 CAM_STATUS_LAST_DOWNLOAD_REFUSED = 0x04
 CAM_STATUS_VERIFYING = 0x08  # a downloaded table is being verified (off the real-time path)
 CAM_STATUS_QUEUED = 0x10  # the pending table takes over at the running table's period end
+CAM_STATUS_CAM_OUT = 0x20  # the slave has left the cam (stopping or stopped)
 #: 0x2001:05 bits: where an activated table's master 0 and slave 0 are.
 SWITCH_MASTER_RELATIVE = 0x01
 SWITCH_SLAVE_RELATIVE = 0x02
@@ -75,6 +80,10 @@ SWITCH_SLAVE_RELATIVE = 0x02
 # The kinds of a queued switch (CamSlot.queued).
 QUEUED_AT_BOUNDARY = "boundary"
 QUEUED_AT_POSITION = "position"
+
+#: A cam-out takes the cam's curvature from its slope this many table counts either side: the
+#: slope is Q16, so a difference over a few counts would be mostly its rounding.
+CURVATURE_COUNTS = 8
 
 #: Blobs longer than this [bytes] are verified by a worker when the drive runs on its own thread:
 #: about 5 400 cubic points, a few milliseconds of verification (a 1 kHz SYNC waits that long).
@@ -139,6 +148,9 @@ class CamSlot:
         # (window None: no cycle yet, the next one sets it); (QUEUED_AT_POSITION, position,
         # last master) [master counts]; False: none queued.
         self.queued: tuple | bool = False
+        # A cam-out: None; (None,) until the next cycle plans it; then [CamOut, cycles since
+        # its start].
+        self.out = None
 
     def reset(self) -> None:
         """Power-on: no table, none pending (a verification in progress is forgotten)."""
@@ -148,6 +160,7 @@ class CamSlot:
         self.master_observer = ()
         self._set_coupling(Coupling())
         self.queued = False
+        self.out = None
 
     def forget_master(self) -> None:
         """Take the next master position as it is: the previous ones are stale."""
@@ -250,6 +263,13 @@ class CamSlot:
             self.queued = (QUEUED_AT_POSITION, int(values.get(CAM_ACTIVATION_POSITION, 0)),
                            self.master_observer[0] if self.observing else None)
             values[CAM_STATUS] |= CAM_STATUS_QUEUED
+        elif command == CAM_COMMAND_CAM_OUT:
+            if self.active_table is None or self.out is not None:
+                raise SdoAbortedError(ABORT_DEVICE_STATE)
+            # the next cycle takes the cam's state there; a queued switch will not come
+            self.out = (None,)
+            self.queued = False
+            values[CAM_STATUS] = (values[CAM_STATUS] | CAM_STATUS_CAM_OUT) & ~CAM_STATUS_QUEUED
         elif command == CAM_COMMAND_DISCARD:  # a verification in progress too
             self._generation += 1
             self.pending_table = self.pending_blob = None
@@ -267,10 +287,11 @@ class CamSlot:
         self.active_table, self.active_blob = self.pending_table, self.pending_blob
         self.pending_table = self.pending_blob = None
         self.queued = False
+        self.out = None  # a new engagement ends a cam-out
         values[ACTIVE_CAM_TABLE_CRC32] = self.active_table.crc32
         values[PENDING_CAM_TABLE_CRC32] = 0
         values[CAM_STATUS] = ((values[CAM_STATUS] | CAM_STATUS_ACTIVE)
-                              & ~(CAM_STATUS_PENDING | CAM_STATUS_QUEUED))
+                              & ~(CAM_STATUS_PENDING | CAM_STATUS_QUEUED | CAM_STATUS_CAM_OUT))
 
     @property
     def observing(self) -> bool:
@@ -352,6 +373,8 @@ class CamSlot:
         """Target [counts] and velocity offset [counts/s] from the active cam at the master
         position 0x2003, for an interpolation period of ``cycle_s``."""
         master = self.observe(cycle_s)
+        if self.out is not None:
+            return self._cam_out(master, cycle_s)
         if self.queued is not False:
             self._switch_queued(master)
         # The velocity offset belongs to the target's time, as a controller's does: the cam's
@@ -365,6 +388,44 @@ class CamSlot:
         target, slope = self._lookup(master)
         velocity = slope * self.master_observer[4] / _SLOPE_ONE
         return target + self.slave_base, velocity
+
+    def _cam_out(self, master: int, cycle_s: float) -> tuple[int, float]:
+        """Target and velocity offset of a cam-out: planned in its first cycle from the cam's
+        state at this cycle's master, then read back at each cycle's time."""
+        out = self.out
+        if out[0] is None:
+            values = self.values
+            try:
+                plan = CamOut(self._cam_state(master),
+                              int(values.get(PROFILE_ACCELERATION, 1)), int(values.get(PROFILE_DECELERATION, 1)),
+                              int(values.get(PROFILE_JERK, 1)))
+            except ValueError:  # not within the drive's numbers: it holds the cam's position
+                logger.exception("cam-out")
+                plan = CamOut((self._slave_at(master), 0.0, 0.0), 1, 1, 1)
+            out = self.out = [plan, 0]
+        plan, k = out
+        out[1] = k + 1
+        position, velocity, _ = plan.state(k * cycle_s)
+        return round(position), velocity
+
+    def _cam_state(self, master: int) -> tuple[float, float, float]:
+        """The cam's slave position, velocity and acceleration [counts, /s, /s^2] at ``master``:
+        the table's position and slope, its curvature from the slope CURVATURE_COUNTS either
+        side, and the master speed observer's speed state (its output adds 2 omega x the
+        error, the whole counts' quantization: +-0.3 % at 37 counts per cycle, a stop's start
+        velocity to keep out). The master's acceleration is taken as zero: the observer's
+        (omega^2 x the error) carries +-8e3 counts/s^2 of the same quantization per cycle; a
+        cam-out during a master ramp starts without slope x the master's acceleration."""
+        coupling, table = self.coupling, self.active_table
+        x = coupling.x(master)
+        position, slope = table.lookup(x, with_slope=True)
+        h = CURVATURE_COUNTS
+        curvature = (int(table.lookup(x + h, with_slope=True)[1])
+                     - int(table.lookup(x - h, with_slope=True)[1])) / (2 * h * _SLOPE_ONE)
+        (mn, md), (sn, sd) = coupling.master_ratio, coupling.slave_ratio
+        speed = self.master_observer[2] * mn / md  # the table's master coordinate per s
+        return (float(coupling.y(position)), sn / sd * slope / _SLOPE_ONE * speed,
+                sn / sd * curvature * speed * speed)
 
     def _switch_queued(self, master: int) -> None:
         """A queued switch: at a period boundary, the pending table takes over in the cycle

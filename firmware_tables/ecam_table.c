@@ -2336,9 +2336,10 @@ static ECAM_COLD int32_t ecam_poly_outside(const ecam_poly *p, int64_t m);
  * Steps 1..3 for a periodic table with h = 2^k whose period M = N 2^k is not a power of two, on a
  * 32-bit core that divides in one instruction (ECAM_POLY_FOLD): i = floor(m / 2^k) mod N and
  * tau = m mod 2^k for any int64 m = hi 2^32 + lo (hi signed, lo unsigned), by two 32-bit
- * remainders instead of the table's 64-bit Barrett reduction (Cortex-M4 at -O2: 11 instructions
- * with SDIV, MLS, MLA, UDIV, MLS, against about 27 for the four 32x32 products of the 64-bit
- * quotient and its corrections; tests/test_cross_targets.py counts them).
+ * remainders instead of the table's 64-bit Barrett reduction (Cortex-M4 at -O2: SDIV, MLS, MLA,
+ * UDIV, MLS and their loads, 10 instructions more than a master inside the period, where the four
+ * 32x32 products of the 64-bit quotient and its corrections cost about 27; tests/test_cross_targets.py
+ * counts them).
  * The algorithm: the residue of a two-word number modulo a one-word N, word by word (Knuth, TAOCP
  * vol. 2, 3rd ed., 4.3.1, exercise 16, short division), with the words cut at bit k, not 32, so
  * that the interval is the residue itself, and with the radix 2^(32-k) replaced by its residue

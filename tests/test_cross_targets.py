@@ -81,7 +81,8 @@ def differential_set() -> list:
         blob = table if isinstance(table, bytes) else table.to_bytes()
         cam = CamTable.from_bytes(blob)
         m = cam.master_counts
-        queries = np.concatenate([np.array([0, -1, m, -m, 2**63 - 1, -(2**63)]), rng_narrow.integers(-3 * m, 3 * m, 500),
+        queries = np.concatenate([np.array([0, -1, m, -m, 2**63 - 1, -(2**63)]),
+                                  rng_narrow.integers(-3 * m, 3 * m, 500),
                                   rng_narrow.integers(-(2**63), 2**63 - 1, 1000, endpoint=True)]).astype(np.int64)
         positions, slopes = cam.lookup(queries, with_slope=True)
         out.append((case, blob, queries, np.stack([cb.int32_wrap(positions), slopes], 1)))
@@ -408,13 +409,16 @@ def test_tools_are_named_when_missing(monkeypatch, tmp_path):
 # --------------------------------------------------------------------------------------------
 
 # The issue's limits for the quintic: 1.5x inside the period, 2x on any int64 master, on both
-# targets and every step. On the Cortex-M4 with a step of 2^k and a period M that is not a power of
-# two, the Q16 yardstick finds its interval in two instructions (33 per call in all); the Barrett
-# wrap of an int64 master by a 64-bit reciprocal cost about 27 instructions on a 32-bit core, so
-# any int64 master cost 2.29x (75.7 instructions), held as an exception. The M4's divide
-# instructions now wrap such a table in 11 (ecam_poly_fold, two 32-bit divisions): 53 instructions,
-# 1.61x (inside the period 43, 1.30x, was 47); with any other step it is 1.81x, and with M = 2^j
-# (the wrap is a mask) 1.76x. No exception is left.
+# targets and every step (instructions.POLY_LIMITS). On the Cortex-M4 with a step of 2^k and a
+# period M that is not a power of two, the Q16 yardstick finds its interval in two instructions
+# (33 per call in all); the Barrett wrap of an int64 master by a 64-bit reciprocal cost about 27
+# instructions on a 32-bit core, so any int64 master cost 2.29x (75.7 instructions), held as an
+# exception. The M4's divide instructions now wrap such a table in 10 instructions more than a
+# master inside the period (ecam_poly_fold, two 32-bit remainders): 53, 1.61x (inside 43, 1.30x,
+# was 47); with any other step it is 1.81x, and with M = 2^j (the wrap is a mask) 1.76x. No
+# exception is left.
+
+
 def _expanded_tables(narrow: bool):
     """Every kind (the issue's limits are the quintic's; the others are printed): the seed cam at
     145 and 97 points, the golden rotary knife (on the Cortex-M4 also compiled with horner_bits=32,

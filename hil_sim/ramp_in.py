@@ -2,15 +2,16 @@
 correction instead of jumping to it.
 
 PLCopen Motion Control Part 1 names the start modes of ``MC_CamIn``: absolute, relative and
-ramp_in. CODESYS SoftMotion documents ramp_in ("Function Blocks: MC_CamTableSelect and
-MC_CamIn", content.helpme-codesys.com, CODESYS SoftMotion/_sm_basic_function_blocks.html,
-``MC_CamIn.StartMode``): the jumps that would occur when the cam starts are prevented by a
-compensating movement whose dynamics are limited by the inputs ``VelocityDiff``, ``Acceleration``
-and ``Deceleration`` (and ``Jerk``: SM3_Basic ``MC_CamIn`` (FB), "VelocityDiff: maximum velocity
-difference for ramp_in mode [u/s]; Acceleration, Deceleration [u/s^2]; Jerk [u/s^3]"), and its
-example BasicMotion_CamIn_StartModes ("Distance-Based Ramping") has the ramp_in slave "synchronize
-as quickly as possible while maintaining the predefined velocity, acceleration, deceleration, and
-jerk limits". That is what this module plans, controller-side:
+ramp_in. CODESYS SoftMotion documents ramp_in in "Function Blocks: MC_CamTableSelect and
+MC_CamIn" (content.helpme-codesys.com, CODESYS SoftMotion/_sm_basic_function_blocks.html,
+``MC_CamIn.StartMode``): a compensating movement keeps the jumps from happening when the cam
+starts, its dynamics bounded by the block's inputs ``VelocityDiff``, ``Acceleration`` and
+``Deceleration``; SM3_Basic's ``MC_CamIn`` (FB) page (.../libs/SM3_Basic/Current/SM3_Basic/POUs/
+Movement/MasterSlave/MC_CamIn.html) adds ``Jerk`` and gives the units (u/s, u/s^2, u/s^3;
+VelocityDiff is the largest velocity difference). Its example project
+BasicMotion_CamIn_StartModes ("Distance-Based Ramping") shows the ramp_in slave synchronising as
+fast as the limits of velocity, acceleration, deceleration and jerk let it. That is what this
+module plans, controller-side:
 
     slave(t) = cam(t) + correction(t),  correction(t0) = slave's state - cam's state at t0,
     correction -> (0, 0, 0) on ruckig's time-optimal jerk-limited profile,
@@ -25,8 +26,10 @@ its peaks then show above 100 % in the report's ``event_motion``, as a cam-out's
 Not modelled: CODESYS's ``ramp_in_pos`` / ``ramp_in_neg`` (a rotary slave compensating in one
 direction only; for a linear slave they are ramp_in) and ``ramp_in_dist`` (a master distance to
 synchronise over). Beckhoff's TwinCAT NC camming has no ramp-in start mode (``MC_StartMode``:
-absolute and relative per axis only, tf5050_tc3_nc_camming/1003815691.html; its hydraulics
-library's ``MC_StartMode_RampIn`` is "not supported", tf5810_tc3_hydraulic_positioning/1599729803.html).
+absolute and relative per axis only, infosys.beckhoff.com tf5050_tc3_nc_camming/1003815691.html;
+``MC_CamIn_V2``'s ``ST_CamInOptions`` hold the activation mode and position, the scaling modes and
+the interpolation type, 1003826699.html, no start mode; its hydraulics library's
+``MC_StartMode_RampIn`` is "not supported", tf5810_tc3_hydraulic_positioning/1599729803.html).
 
 The drive's cam slot switches tables itself and has no correction: a drive-side scene with a
 ramp_in switch is refused (:func:`refuse_drive_side`).

@@ -178,6 +178,26 @@ def test_a_cam_out_during_the_ramp_leaves_from_the_corrected_slave(ramped):
     assert np.max(np.abs(np.diff(plan.targets))) < 0.01 * 100000
 
 
+def test_a_switch_during_the_ramp_starts_from_the_corrected_slave(ramped):
+    """An offset that changes nothing, immediate at 190 deg (10 deg into the ramp), takes the slave
+    from where it is, the cam plus the correction, back onto product B: without ramp_in it jumps
+    by minus the correction there (per master unit at 360 deg/s); with ramp_in it starts a new
+    correction from that state and the set points never step."""
+    data = tomllib.loads((SCENES_DIR / "changeover_ramp_in.toml").read_text())
+    data["event"].append({"name": "again", "action": "offset", "at_position": 190.0, "activation": "immediate",
+                          "allow_jump": True})
+    plan = _plan(parse_scene(data, base=SCENES_DIR, source="s.toml"))
+    first, second = plan.events.switches
+    assert first.ramp.start_s < second.active_s < first.ramp.end_s and second.ramp is None
+    p, v, a = first.ramp.state(second.active_s)
+    assert dict(second.jumps) == pytest.approx({0: -p, 1: -v / 360.0, 2: -a / 360.0**2}, rel=1e-9)
+    data["event"][-1].update(start_mode="ramp_in", max_velocity=5.0, max_acceleration=200.0, max_jerk=20000.0)
+    plan = _plan(parse_scene(data, base=SCENES_DIR, source="s.toml"))
+    second = plan.events.switches[1]
+    assert second.jumps == () and second.ramp.start == pytest.approx((p, v, a), rel=1e-9)
+    assert np.max(np.abs(np.diff(plan.targets))) < 0.01 * 100000
+
+
 def test_ramp_in_fields_are_checked_and_drive_side_refused():
     data = tomllib.loads((SCENES_DIR / "changeover_ramp_in.toml").read_text())
     del data["event"][0]["max_jerk"]

@@ -20,6 +20,7 @@ thread, stamping frames with a clock of its own) and :func:`pump` (hand every wa
 
 from __future__ import annotations
 
+import collections
 import math
 import queue
 import time
@@ -89,6 +90,14 @@ class BusLoad:
     once per cycle. A cycle overruns when its frames need more bits than
     ``floor(bitrate * cycle_s)``: on a real bus the last frames would slip into the next
     cycle and arrive after the SYNC they were meant for.
+
+    Acyclic frames (the SDO writes of a drive-side event: a table download, the cam slot's
+    commands) are queued with :meth:`queue_frame` instead: their COB-IDs (0x580/0x600 + node,
+    CiA 301's pre-defined connection set) lose every arbitration to the SYNC (0x080) and the
+    PDOs (0x180..0x57F), and an SDO client sends one transfer after another, so they go in
+    order into the bits each cycle leaves below its budget, as many whole frames as fit, and
+    wait for the next cycle otherwise. They are counted apart from the cyclic load
+    (:meth:`summary`'s ``event_sdo``), whose peak the load limit judges.
     """
 
     def __init__(self, bitrate: int, cycle_s: float) -> None:
@@ -101,6 +110,33 @@ class BusLoad:
         self.cycle_bits: list[int] = []
         self.frames = 0
         self.bits = 0
+        self._queue: collections.deque = collections.deque()  # (bits, tag) waiting
+        self.acyclic: dict = {}  # tag -> [frames, bits, first cycle, last cycle or None]
+        self._waiting: dict = {}  # tag -> its frames still queued
+        self.acyclic_peak_bits = 0  # the busiest cycle's bits, acyclic frames included
+
+    def queue_frame(self, data_length: int, tag) -> None:
+        """Queue one acyclic frame of ``data_length`` bytes, counted under ``tag``."""
+        bits = self._bits_by_length[data_length]
+        self._queue.append((bits, tag))
+        entry = self.acyclic.setdefault(tag, [0, 0, len(self.cycle_bits), None])
+        entry[0] += 1
+        entry[1] += bits
+        entry[3] = None  # not all sent until the queue has taken this one
+        self._waiting[tag] = self._waiting.get(tag, 0) + 1
+
+    def _drain(self) -> None:
+        """Send queued acyclic frames in the bits this cycle leaves."""
+        used = self._cycle_bits
+        cycle = len(self.cycle_bits)
+        queue = self._queue
+        while queue and used + queue[0][0] <= self.budget_bits:
+            bits, tag = queue.popleft()
+            used += bits
+            self._waiting[tag] -= 1
+            if not self._waiting[tag]:
+                self.acyclic[tag][3] = cycle
+        self.acyclic_peak_bits = max(self.acyclic_peak_bits, used)
 
     def add_frame(self, data_length: int) -> None:
         """Count one frame of ``data_length`` bytes in the current cycle."""
@@ -109,6 +145,8 @@ class BusLoad:
 
     def end_cycle(self) -> None:
         """Close the current cycle."""
+        if self._queue:
+            self._drain()
         self.cycle_bits.append(self._cycle_bits)
         self.frames += self._cycle_frames
         self.bits += self._cycle_bits
@@ -140,7 +178,17 @@ class BusLoad:
             "first_overrun_cycle": int(over[0]) if over.size else None,
             "frames": self.frames,
             "cycles": cycles,
+            **({"event_sdo": self._acyclic_summary()} if self.acyclic else {}),
         }
+
+    def _acyclic_summary(self) -> dict:
+        """The queued frames: per tag (node, event) frames, bits, the cycle queued and the cycle
+        the last went out (None: still waiting at the end); the busiest cycle with them."""
+        return {"transfers": [{"node": tag[0], "event": tag[1], "frames": frames, "bits": bits,
+                               "queued_cycle": first, "sent_cycle": last}
+                              for tag, (frames, bits, first, last) in self.acyclic.items()],
+                "pending_frames": len(self._queue),
+                "peak_bits": max(self.acyclic_peak_bits, max(self.cycle_bits, default=0))}
 
 
 def arbitrate(frames: list, budget_bits: int, used_bits: int) -> tuple[list, list]:

@@ -26,6 +26,29 @@ STANDARD_BITRATES = (10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000,
 MAX_PATTERN_SYNCS = 100_000
 
 
+#: CiA 301 SDO: an expedited transfer carries up to 4 data bytes in its initiate request; a
+#: segmented one 7 per segment; a block transfer's blocks hold up to 127 segments (blksize).
+SDO_EXPEDITED_BYTES = 4
+SDO_SEGMENT_BYTES = 7
+SDO_BLOCK_SEGMENTS = 127
+#: Every SDO frame carries 8 data bytes (CiA 301: unused bytes are sent, reserved).
+SDO_FRAME_BYTES = 8
+
+
+def sdo_download_frames(data_bytes: int, block: bool = False) -> int:
+    """Frames on the bus, both ways, of one SDO download of ``data_bytes`` (CiA 301, as the
+    canopen package's client sends it): expedited up to 4 bytes (request and response);
+    segmented beyond (initiate request and response, then a request and a response per 7
+    bytes); ``block``: initiate request and response, one frame per 7 bytes, the server's
+    acknowledgement after each block of up to 127 segments, end request and response."""
+    if data_bytes <= SDO_EXPEDITED_BYTES and not block:
+        return 2
+    segments = math.ceil(data_bytes / SDO_SEGMENT_BYTES)
+    if block:
+        return 2 + segments + math.ceil(segments / SDO_BLOCK_SEGMENTS) + 2
+    return 2 + 2 * segments
+
+
 def frame_timing(frame) -> tuple[int, int, int]:
     """``(data_length, every, phase)`` of a frame given as a data length (sent on every SYNC)
     or as ``(data_length, every, phase)``: on the SYNCs whose number modulo ``every`` is

@@ -32,6 +32,8 @@ from hil_sim.scene import parse_scene
 
 CYCLES = 1500  # 1.5 s at 60 rpm: the switch at 360 deg and half a period of the new cam
 SWITCH_B = {"action": "switch", "cam": "cams/product_b.toml", "at_position": 100.0, "allow_jump": True}
+# the changeover's first switch: into the transition cam designed from the seed's end
+TO_TRANSITION = {"action": "switch", "cam": "cams/a_to_b.toml", "master": "relative"}
 # the changeover's stop (in/s, in/s^2, in/s^3)
 CAM_OUT = {"action": "cam_out", "at_position": 120.0, "max_velocity": 10.0, "max_acceleration": 200.0,
            "max_jerk": 20000.0}
@@ -263,3 +265,70 @@ def test_a_cam_out_limit_past_unsigned32_counts_is_refused():
     with pytest.raises(InputError, match=r"event\[0\]\.max_jerk: 100000 should be within 1e-05\.\.42949\.7 slave "
                        r"units/s\^3 with cam_mode 'drive' \(0x60A4 is UNSIGNED32"):
         plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+
+
+# ------------------------------------------------------------------------------ bus budget
+def _bus_run(at_position: float, cycles: int = 1020):
+    from hil_sim.rig import run_scene
+
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data.update(cam_mode="drive", event=[dict(TO_TRANSITION, at_position=at_position)], duration={"cycles": cycles})
+    return run_scene(parse_scene(data, base=SCENES_DIR, source="bus.toml").with_fidelity("ideal"))
+
+
+def _sdo_bytes(command) -> int:
+    """A command's data: the blob, a 64-bit object (0x2001:06/07), or at most 4 bytes."""
+    if isinstance(command.value, bytes):
+        return len(command.value)
+    return 8 if (command.index, command.subindex) in ((0x2001, 6), (0x2001, 7)) else 4
+
+
+def test_a_switch_s_sdo_frames_go_in_the_cycles_spare_bits_before_it_activates():
+    """The change-over's transition switched in at the seed's period end (cycle 999), requested
+    at 100 deg: its
+    SDO download and writes are the frames CiA 301's segmented download counts (initiate, then
+    a request and a response per 7 bytes; expedited writes a request and a response), they go
+    at the lowest priority into the bits the cyclic frames leave, over many cycles, all before
+    the activation, and the cyclic load the limit judges is what it is without them."""
+    from hil_sim.bus_sizing import sdo_download_frames
+    from hil_sim.bus import frame_bits
+
+    report = _bus_run(100.0)
+    transfer, = report.summary["bus"]["event_sdo"]["transfers"]
+    commands = [c for c in _drive_commands_of(100.0)]
+    frames = sum(sdo_download_frames(_sdo_bytes(c)) for c in commands)
+    assert transfer["frames"] == frames and transfer["bits"] == frames * frame_bits(8)
+    spare = report.summary["bus"]["budget_bits"] - report.summary["bus"]["peak_bits"]
+    assert transfer["sent_cycle"] - transfer["queued_cycle"] + 1 >= transfer["bits"] / spare
+    bus_load = report.check("bus_load")
+    assert bus_load.passed and "before its activation in cycle 999" in bus_load.detail
+    assert bus_load.value == report.summary["bus"]["peak_percent"] < 50.0
+
+
+def test_a_switch_whose_sdo_frames_cannot_arrive_before_it_activates_fails_the_bus_load():
+    """The same switch requested at 355 deg, 12 cycles before the period end: its 28 080 bits
+    would need 2 340 bits a cycle there on top of the cyclic 455, past the 1000 bits of a 1 ms
+    cycle at 1 Mbit/s (they are not all sent by the end of the run): the bus_load check fails
+    with the load it would need and names the switch."""
+    report = _bus_run(355.0)
+    bus_load = report.check("bus_load")
+    transfer, = report.summary["bus"]["event_sdo"]["transfers"]
+    act = 999
+    expected = 100.0 * (report.summary["bus"]["peak_bits"]
+                        + -(-transfer["bits"] // (act - transfer["queued_cycle"]))) / 1000
+    assert not bus_load.passed and bus_load.value == pytest.approx(expected)
+    assert "past its activation in cycle 999" in bus_load.detail
+
+
+def _drive_commands_of(at_position: float) -> list:
+    scene = _scene("drive", [dict(TO_TRANSITION, at_position=at_position)])
+    return list(plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES).events.drive_commands)
+
+
+def test_sdo_download_frames_follow_cia_301():
+    from hil_sim.bus_sizing import sdo_download_frames
+
+    assert [sdo_download_frames(n) for n in (1, 4, 5, 7, 8, 14, 15)] == [2, 2, 4, 4, 6, 6, 8]
+    # block: initiate, 7 bytes a frame, an acknowledgement per 127 segments, end
+    assert sdo_download_frames(7 * 127, block=True) == 2 + 127 + 1 + 2
+    assert sdo_download_frames(7 * 128, block=True) == 2 + 128 + 2 + 2

@@ -194,7 +194,8 @@ def test_the_cam_slot_takes_a_queued_table_at_the_period_end():
 def test_drive_side_switches_run_the_same_on_the_bus_and_bus_free():
     """The changeover's switches and phase shift drive-side, at three times the speed (half a
     second): the drive's cam slot switches at the period ends (the load follows: the tracking
-    error stays in its limit) and the bus-free path gives the same physics bit for bit."""
+    error stays in its limit) and the bus-free path gives the same physics bit for bit; the bus
+    budget names the switch whose table cannot arrive in time at this speed."""
     from hil_sim.rig import run_scene
 
     data = tomllib.loads((SCENES_DIR / "changeover.toml").read_text())
@@ -207,7 +208,13 @@ def test_drive_side_switches_run_the_same_on_the_bus_and_bus_free():
         event["at_position"] = at
     scene = parse_scene(data, base=SCENES_DIR, source="drive.toml").with_fidelity("ideal")
     over_bus, bus_free = run_scene(scene), run_scene(scene, path="fast")
-    assert over_bus.passed, over_bus.to_text()
+    # every check passes but the bus's: product B's table (702 SDO frames, 94 770 bits) needs
+    # about 174 cycles of the bits the cyclic frames leave at 1 Mbit/s, and the transition it
+    # is requested in lasts 83 cycles at this speed: on a real bus the switch would come late
+    # (hil_sim/rig/event_bus.py); the lock-step drive has the table at once
+    assert [c.name for c in over_bus.checks if not c.passed] == ["bus_load"], over_bus.to_text()
+    assert "event[1] 702 SDO frames" in over_bus.check("bus_load").detail
+    assert "past its activation" in over_bus.check("bus_load").detail
     for name in ("following_error", "tracking_error", "coupling_torque"):
         assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
     switches = over_bus.summary["events"]["switches"]

@@ -18,6 +18,7 @@ from hil_sim.rig.cam import cam_spectrum
 from hil_sim.rig.loop import Record
 from hil_sim.rig.plan import PreparedRun
 from hil_sim.rig.stability import loop_stability_check
+from hil_sim.rig.event_bus import event_sdo
 from hil_sim.rig.event_checks import event_checks
 from hil_sim.rig.sizing_checks import fill_coupling, sizing_checks
 from hil_sim.sync_schedule import TpdoTiming
@@ -199,7 +200,10 @@ def bus_load_check(run: PreparedRun, record: Record) -> Check:
     if late:
         detail += (f"; {bus.get('late_set_points', 0)} set points and {bus.get('late_tpdos', 0)} "
                    "TPDOs missed their SYNC (sent after it)")
-    return check("bus_load", bus["peak_percent"], run.scene.limits.bus_load_percent, "%", detail)
+    sdo_text, needed = event_sdo(run, bus)  # drive-side events' SDO frames (hil_sim.rig.event_bus)
+    detail += f"; {sdo_text}" if sdo_text else ""
+    value = bus["peak_percent"] if needed is None else max(bus["peak_percent"], needed)
+    return check("bus_load", value, run.scene.limits.bus_load_percent, "%", detail)
 
 
 def motor_saturation_check(run: PreparedRun, record: Record) -> Check:

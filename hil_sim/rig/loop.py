@@ -124,6 +124,7 @@ class _Cycles:
         self.send = controller.bus.send
         self.recv = controller.bus.recv
         self.notify = controller.notify
+        self.load = load  # the events' SDO frames queue into its spare bits
         self.add_frame = load.add_frame
         self.end_cycle = load.end_cycle
         self.budget_bits = load.budget_bits
@@ -203,7 +204,7 @@ class _Cycles:
             self._receive_and_arbitrate(k)
             if commands and k in commands:  # drive-side events: after the cycle's TPDOs, so
                 for station, writes in commands[k]:  # the SDO answers are the only frames read
-                    send_cam_commands(station.node, writes)
+                    send_cam_commands(station.node, writes, self.load)
             for station in stations:
                 station.recorder.probe(k, station.axis)
             self.end_cycle()

@@ -55,6 +55,9 @@ class LockstepMaster(SimNetwork):
         self.drives = drives
         self.load = load if load is not None else BusLoad(1_000_000, self.drive.cycle_s)
         self.frames = 0
+        # while set (send_cam_commands): the frames go to acyclic_load's queue under this tag
+        self.acyclic_tag = None
+        self.acyclic_load: BusLoad | None = None
 
     def send_message(self, can_id, data, remote=False):
         super().send_message(can_id, data, remote)
@@ -63,7 +66,10 @@ class LockstepMaster(SimNetwork):
 
     def _count(self, length: int) -> None:
         self.frames += 1
-        self.load.add_frame(length)
+        if self.acyclic_tag is None:
+            self.load.add_frame(length)
+        else:  # an event's SDO transfer: into the cycles' spare bits (BusLoad.queue_frame)
+            self.acyclic_load.queue_frame(length, self.acyclic_tag)
 
     def settle(self) -> None:
         """Let the drives handle what was sent, then handle what they answered."""
@@ -221,12 +227,21 @@ def _enable(controller: LockstepMaster, node) -> None:
                               "OPERATION ENABLED (0x27 under mask 0x6F)")
 
 
-def send_cam_commands(node, commands) -> None:
+def send_cam_commands(node, commands, load: BusLoad | None = None) -> None:
     """The events' writes to the drive's cam slot (:class:`hil_sim.events.DriveCommand`) by SDO:
-    a table blob downloaded (segmented) into 0x2000, a number written expedited."""
+    a table blob downloaded (segmented) into 0x2000, a number written expedited (a 64-bit one
+    segmented). With ``load``, every frame of an event's writes, both ways, is queued there as
+    acyclic traffic under (node id, event) (:meth:`hil_sim.bus.BusLoad.queue_frame`)."""
     sdo = node.sdo
-    for command in commands:
-        if isinstance(command.value, bytes):
-            sdo.download(command.index, command.subindex, command.value)
-        else:
-            sdo_entry(sdo, ObjectKey(command.index, command.subindex)).raw = command.value
+    network = node.network
+    try:
+        for command in commands:
+            if load is not None:
+                network.acyclic_load, network.acyclic_tag = load, (node.id, command.event)
+            if isinstance(command.value, bytes):
+                sdo.download(command.index, command.subindex, command.value)
+            else:
+                sdo_entry(sdo, ObjectKey(command.index, command.subindex)).raw = command.value
+    finally:
+        if load is not None:
+            network.acyclic_tag = network.acyclic_load = None

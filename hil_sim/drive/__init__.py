@@ -26,8 +26,11 @@ protocol service:
   verified with :meth:`ecam.CamTable.from_bytes` into a pending slot and activated atomically by
   writing 1 to 0x2001:01; a bad, truncated or aborted download is refused and the running table
   keeps running. With cam mode 0x2004 = 1 the target is the cam at the master position 0x2003;
-  0x2001:01 = 3 queues the pending table for the running table's period end, placed as
-  0x2001:05 says (master and slave absolute or relative, PLCopen MC_CamTableSelect);
+  0x2001:01 = 3 queues the pending table for where the master leaves the running table's
+  period (either way, as the firmware's ``ecam_table_pair``), 4 for where it crosses 0x2001:06,
+  placed as 0x2001:05 says (master and slave absolute or relative, PLCopen MC_CamTableSelect)
+  with MC_CamIn's offsets and scaling from 0x2001:07..0C (:mod:`~hil_sim.drive.cam_coupling`);
+  5 leaves the cam and stops within 0x6083/0x6084/0x60A4:01 (:mod:`~hil_sim.drive.cam_out`);
 * :mod:`~hil_sim.drive.runner`: when frames are handled, and the bus; the one door every
   received frame passes: 29-bit, remote and error frames stay out, and an exception that
   escapes a handler (a defect) is logged and faults the drive with EMCY 0x6100 instead of

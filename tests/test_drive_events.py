@@ -200,21 +200,26 @@ def test_a_master_position_the_drive_has_passed_is_refused():
         plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
 
 
-def test_drive_side_offsets_and_master_position_over_the_bus_are_the_bus_free_run():
+def test_drive_side_offsets_master_position_and_cam_out_over_the_bus_are_the_bus_free_run():
     """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented; the cam-out's 0x6083, 0x6084,
-    0x60A4:01) reach the drive over the bus and give the bus-free path's physics bit for bit."""
+    0x60A4:01) reach the drive over the bus and give the bus-free path's physics bit for bit: the
+    change-over's transition switched in where the master crosses 360 deg, with a SlaveOffset of
+    0.001 in, and a cam-out mid-transition at 400 deg; the bus_load check names both transfers."""
     from hil_sim.rig import run_scene
 
-    events = [dict(SWITCH_B, activation="master_position", activation_position=200.0, master="relative",
-                   slave="relative", master_offset=5.0, slave_offset=0.01), dict(CAM_OUT, at_position=300.0)]
+    events = [dict(TO_TRANSITION, at_position=100.0, activation="master_position", activation_position=360.0,
+                   slave_offset=0.001, allow_jump=True), dict(CAM_OUT, at_position=400.0)]
     data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
-    data.update(cam_mode="drive", event=events, duration={"cycles": 900})
+    data.update(cam_mode="drive", event=events, duration={"cycles": 1200})
     scene = parse_scene(data, base=SCENES_DIR, source="bus.toml").with_fidelity("ideal")
     over_bus, bus_free = run_scene(scene), run_scene(scene, path="fast")
+    assert over_bus.cycles == 1200 and over_bus.check("faults").passed  # ran to its end
     for name in ("following_error", "tracking_error"):
         assert np.array_equal(over_bus.series[name], bus_free.series[name], equal_nan=True), name
-    assert over_bus.summary["events"]["switches"][0]["master"] == pytest.approx(200.0)
-    assert over_bus.summary["events"]["motions"][0]["duration_s"] > 0.03  # a stop mid-rise
+    assert over_bus.summary["events"]["switches"][0]["master"] == pytest.approx(360.0)
+    assert over_bus.summary["events"]["motions"][0]["duration_s"] > 0.02  # a stop mid-transition
+    detail = over_bus.check("bus_load").detail
+    assert "before its activation in cycle 999" in detail and "event[1] 8 SDO frames" in detail
 
 
 # ------------------------------------------------------------------------------------ cam-out

@@ -9,12 +9,13 @@ requested in and the drive has them at once; on a real bus they are the lowest-p
 and go in the bits the cyclic traffic leaves (:meth:`hil_sim.bus.BusLoad.queue_frame` counts them
 so, cycle by cycle). This module says what that means for each event:
 
-* a queued switch (``period_end``, ``master_position``) must be in the drive before it activates:
+* a queued switch or offset (``period_end``, ``master_position``) must be in the drive before it
+  activates:
   when its frames go out only in or after the cycle it activates in, the switch would come late
   on a real bus, and the ``bus_load`` check's value becomes the load the cycles between the
   request and the activation would need to carry it in time (the cyclic peak plus the transfer's
   bits spread over them), so a switch that pushes those cycles over the limit fails;
-* an ``immediate`` switch, an ``offset`` and a ``cam_out`` act when their last frame arrives: the
+* an ``immediate`` switch or offset and a ``cam_out`` act when their last frame arrives: the
   detail says how many cycles after the request that is.
 """
 
@@ -40,8 +41,8 @@ def event_sdo(run, bus: dict) -> tuple[str, float | None]:
         return "", None
     node = run.scene.drive.node_id
     events = run.plan.events
-    activation = {s.event.index: (s.event.activation if s.event.action == "switch" else "offset", s.active_s)
-                  for s in events.switches} if events is not None else {}
+    activation = ({s.event.index: (s.event.activation, s.active_s) for s in events.switches}
+                  if events is not None else {})
     cycle_s, lead = run.plan.cycle_s, run.scene.master.lead_cycles
     budget = bus["budget_bits"]
     parts, needed = [], None

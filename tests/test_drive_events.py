@@ -253,16 +253,29 @@ def test_the_cam_out_command_needs_a_table_and_shows_in_the_status():
     empty = CamSlot({CAM_STATUS: 0, CAM_MODE: 0, CAM_SWITCH_MODE: 0})
     with pytest.raises(SdoAbortedError):
         empty.write_command(CAM_COMMAND_CAM_OUT)
+    from hil_sim.drive.objects import PROFILE_ACCELERATION, PROFILE_DECELERATION, PROFILE_JERK
+
     seed, _ = _tables()
-    slot = _slot(seed)
-    for master in (100, 137):
+    slot = _slot(seed, {PROFILE_ACCELERATION: 20_000_000, PROFILE_DECELERATION: 20_000_000,
+                        PROFILE_JERK: 2_000_000_000})  # the changeover's stop in counts
+    for master in (12_000, 12_037):  # mid-rise, 37 counts a cycle
         slot.values[MASTER_POSITION] = master
         slot.target(0.001)
     slot.write_command(CAM_COMMAND_CAM_OUT)
     assert slot.values[CAM_STATUS] & CAM_STATUS_CAM_OUT
+    stopped = []
+    for master in range(12_074, 12_074 + 37 * 100, 37):  # 0.1 s: the stop takes about 0.05 s
+        slot.values[MASTER_POSITION] = master
+        stopped.append(slot.target(0.001)[0])
+    assert stopped[-1] == stopped[-2] != stopped[0] and stopped[-1] != int(seed.lookup(master))  # at rest, off the cam
     slot.verify_download(seed.to_bytes())
-    slot.write_command(CAM_COMMAND_ACTIVATE)  # a new engagement ends it
+    with pytest.raises(SdoAbortedError):  # off the cam, nothing to queue a switch on
+        slot.write_command(CAM_COMMAND_ACTIVATE_AT_PERIOD_END)
+    slot.values[CAM_SWITCH_MODE] = 3
+    slot.write_command(CAM_COMMAND_ACTIVATE)  # a new engagement ends it, from where it stopped
     assert not slot.values[CAM_STATUS] & CAM_STATUS_CAM_OUT and slot.out is None
+    slot.values[MASTER_POSITION] = master
+    assert slot.target(0.001)[0] == stopped[-1] + int(seed.lookup(0))
 
 
 def test_a_cam_out_limit_past_unsigned32_counts_is_refused():

@@ -149,7 +149,8 @@ class CamSlot:
         # last master) [master counts]; False: none queued.
         self.queued: tuple | bool = False
         # A cam-out: None; (None,) until the next cycle plans it; then [CamOut, cycles since
-        # its start].
+        # its start, the last target [counts]]. A queued activation (3, 4) is refused meanwhile;
+        # 1 engages the pending table there (slave relative: from the last target).
         self.out = None
 
     def reset(self) -> None:
@@ -243,13 +244,15 @@ class CamSlot:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             if self.observing and self.active_table is not None:
                 master = self.master_observer[0]  # the master of the last cycle: the switch's
-                self._place(master, self._slave_at(master))
+                # after a cam-out the slave is where the stop has brought it, not on the cam
+                slave = self.out[2] if self.out is not None and len(self.out) > 2 else self._slave_at(master)
+                self._place(master, slave)
             else:  # the engagement: MC_CamIn's StartMode absolute, with its offsets and scaling
                 self._place(0, 0, engage=True)
             self._activate()
             self.master_observer = ()
         elif command == CAM_COMMAND_ACTIVATE_AT_PERIOD_END:
-            if self.pending_table is None or self.active_table is None:
+            if self.pending_table is None or self.active_table is None or self.out is not None:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             # the running period: the one holding the master of the last cycle (SwitchPair's
             # window at the arming); no cycle yet: the next one's, and it cannot switch
@@ -257,7 +260,7 @@ class CamSlot:
                            else (QUEUED_AT_BOUNDARY, None, None))
             values[CAM_STATUS] |= CAM_STATUS_QUEUED
         elif command == CAM_COMMAND_ACTIVATE_AT_MASTER_POSITION:
-            if self.pending_table is None or self.active_table is None:
+            if self.pending_table is None or self.active_table is None or self.out is not None:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)
             # where the master crosses 0x2001:06, either way, from the master of the last cycle
             self.queued = (QUEUED_AT_POSITION, int(values.get(CAM_ACTIVATION_POSITION, 0)),
@@ -402,11 +405,11 @@ class CamSlot:
             except ValueError:  # not within the drive's numbers: it holds the cam's position
                 logger.exception("cam-out")
                 plan = CamOut((self._slave_at(master), 0.0, 0.0), 1, 1, 1)
-            out = self.out = [plan, 0]
-        plan, k = out
-        out[1] = k + 1
+            out = self.out = [plan, 0, 0]
+        plan, k, _ = out
         position, velocity, _ = plan.state(k * cycle_s)
-        return round(position), velocity
+        out[1], out[2] = k + 1, round(position)
+        return out[2], velocity
 
     def _cam_state(self, master: int) -> tuple[float, float, float]:
         """The cam's slave position, velocity and acceleration [counts, /s, /s^2] at ``master``:

@@ -23,6 +23,25 @@ from ecam.errors import SimulationError
 from ecam.validate import fail, integer, plain, show
 
 
+def phase_extremum_times(phases) -> list:
+    """Per constant-jerk phase ``(begin, dt, jerk, acceleration, velocity)`` of a ruckig profile,
+    the times in it where velocity (the acceleration's zero) and position (the velocity's zeros)
+    can peak, with its ends: one array per phase."""
+    times = []
+    for begin, dt, jerk, acc, vel in phases:
+        candidates = [0.0, dt]
+        if jerk != 0.0:
+            candidates.append(-acc / jerk)
+            disc = acc * acc - 2.0 * jerk * vel
+            if disc >= 0.0:
+                root = math.sqrt(disc)
+                candidates += [(-acc + root) / jerk, (-acc - root) / jerk]
+        elif acc != 0.0:
+            candidates.append(-vel / acc)
+        times.append(np.array([begin + c for c in candidates if 0.0 <= c <= dt]))
+    return times
+
+
 def _number(field: str, value: object, **bounds) -> float:
     """``value`` (a Python or numpy number) checked by :func:`ecam.validate.number`."""
     return validate.number(field, plain(value), **bounds)
@@ -96,22 +115,13 @@ class _Segment:
         Inside a ruckig phase the jerk is constant, so velocity peaks where the acceleration
         crosses zero and position where the velocity does; both are solved per phase.
         """
-        times = [np.linspace(0.0, self.duration, samples)]
         profile = self.trajectory.profiles[0][0]
-        offset = profile.brake.duration + profile.accel.duration
-        begin = offset
+        begin = profile.brake.duration + profile.accel.duration
+        phases = []
         for dt, jerk, acc, vel in zip(profile.t, profile.j, profile.a, profile.v):
-            candidates = [0.0, dt]
-            if jerk != 0.0:
-                candidates.append(-acc / jerk)
-                disc = acc * acc - 2.0 * jerk * vel
-                if disc >= 0.0:
-                    root = math.sqrt(disc)
-                    candidates += [(-acc + root) / jerk, (-acc - root) / jerk]
-            elif acc != 0.0:
-                candidates.append(-vel / acc)
-            times.append(np.array([begin + c for c in candidates if 0.0 <= c <= dt]))
+            phases.append((begin, dt, jerk, acc, vel))
             begin += dt
+        times = [np.linspace(0.0, self.duration, samples), *phase_extremum_times(phases)]
         return np.clip(np.concatenate(times), 0.0, self.duration)
 
 

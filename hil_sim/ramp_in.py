@@ -45,6 +45,7 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from ecam.errors import InputError, SimulationError
 from ecam.profile import ORDER_NAMES
+from hil_sim.master import phase_extremum_times
 
 __all__ = ["Correction", "RampIn", "add_correction", "apply_corrections", "plan_ramp_in", "refuse_drive_side",
            "with_correction"]
@@ -127,18 +128,7 @@ class Correction:
         acceleration's zero) and the position (the velocity's zeros) can peak [s]."""
         if self.trajectory is None:
             return np.zeros(1)
-        times = [np.linspace(0.0, self.duration / self.tau, samples)]
-        for begin, dt, jerk, acc, vel in self._phases():
-            candidates = [0.0, dt]
-            if jerk != 0.0:
-                candidates.append(-acc / jerk)
-                disc = acc * acc - 2.0 * jerk * vel
-                if disc >= 0.0:
-                    root = math.sqrt(disc)
-                    candidates += [(-acc + root) / jerk, (-acc - root) / jerk]
-            elif acc != 0.0:
-                candidates.append(-vel / acc)
-            times.append(np.array([begin + c for c in candidates if 0.0 <= c <= dt]))
+        times = [np.linspace(0.0, self.duration / self.tau, samples), *phase_extremum_times(self._phases())]
         return np.clip(np.concatenate(times) * self.tau, 0.0, self.duration)
 
     @property

@@ -120,6 +120,8 @@ class Switch:
     ramp : hil_sim.ramp_in.RampIn or None
         start_mode ramp_in: the correction that brought the slave onto the new cam (then
         ``jumps`` holds no position, velocity or acceleration jump: they are its start).
+    superseded_by : str
+        The later event that took its place before it activated (then ``active_s`` is None).
     """
 
     event: Event
@@ -133,6 +135,7 @@ class Switch:
     jumps: tuple = ()
     speed: float = 0.0
     ramp: ramp_in.RampIn | None = None
+    superseded_by: str = ""
 
     @property
     def errors(self) -> tuple:
@@ -169,7 +172,8 @@ class Switch:
                 "jumps": {ORDER_NAMES[o]: s for o, s in self.jumps},
                 "allowed": self.event.allow_jump, "failed": self.failed,
                 **({"start_mode": "ramp_in", "ramp_in": self.ramp and self.ramp.to_dict()}
-                   if self.event.start_mode == "ramp_in" else {})}
+                   if self.event.start_mode == "ramp_in" else {}),
+                **({"superseded_by": self.superseded_by} if self.superseded_by else {})}
 
 
 @dataclass(frozen=True)
@@ -523,6 +527,9 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
         if program.out is not None:
             raise InputError(f"{event.label}: at {requested:.6g} s should come before the cam_out "
                              f"at {program.out[0]:.6g} s (the slave has left the cam)")
+        if event.action != "phase":  # it takes the cam slot: a switch queued before is dropped
+            cut = float(t_set[_command_cycle(requested, cycle_s, t_set)]) if drive_side else requested
+            _supersede(program, switches, motions, cut, event)
         if event.action == "phase":
             segment = _phase_segment(event, program.phases.state(requested))
             program.phases.plans.append((requested, segment))
@@ -557,12 +564,38 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     return targets, velocities, reference, outcome, master_end
 
 
+def _command_cycle(requested: float, cycle_s: float, t_set: np.ndarray) -> int:
+    """The cycle after whose SYNC a request's SDO writes are sent: the first whose SYNC
+    (k x cycle_s) is not before the request."""
+    return min(max(math.ceil(requested / cycle_s - 1e-9), 0), len(t_set) - 1)
+
+
+def _supersede(program: _Program, switches: list, motions: list, cut: float, event: Event) -> None:
+    """A switch, offset or cam-out requested while an earlier switch waits for its activation
+    (later than ``cut`` [s]) takes its place: the drive's cam slot holds one pending table, which a
+    new download replaces and a cam-out clears (:mod:`hil_sim.drive.cam_slot`), as a new
+    ``MC_CamIn`` / ``MC_CamOut`` aborts the pending one (PLCopen TC2 v2.0, BufferMode
+    ``mcAborting``, the default). The waiting switch never activates: its piece and its ramp_in go,
+    and it is reported as superseded instead of with jumps it never made. Drive-side ``cut`` is
+    the set-point time of the cycle the writes follow (a switch due by then has happened in the
+    drive); controller-side the request's time."""
+    dropped = set()
+    for i, switch in enumerate(switches):
+        if switch.active_s is not None and switch.active_s > cut:
+            switches[i] = Switch(switch.event, switch.requested_s, None, cam=switch.cam,
+                                 superseded_by=event.label)
+            dropped.add(switch.event.index)
+    if dropped:
+        program.pieces[:] = [p for p in program.pieces if p.start_s <= cut]
+        motions[:] = [m for m in motions if m.event.index not in dropped]
+
+
 def _drive_cam_out(event: Event, requested: float, cycle_s: float, t_set: np.ndarray,
                    scale: float) -> tuple:
     """A cam-out drive-side: the profile limits into 0x6083, 0x6084 and 0x60A4:01 [counts/s^n]
     and 0x2001:01 = 5 after the SYNC of the cycle it is requested in; the drive stops from the
     cam's state in the next cycle, whose set-point time is returned as the stop's start."""
-    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), len(t_set) - 1)
+    cycle = _command_cycle(requested, cycle_s, t_set)
     if cycle + 1 >= len(t_set):  # the run ends before the drive acts
         return requested, []
     writes = []
@@ -593,8 +626,7 @@ def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: 
                          f"{piece.profile.master_unit} should be a whole number of the scene's master "
                          f"counts ({per_unit:g} per {piece.profile.master_unit}) with cam_mode 'drive': "
                          "the drive looks the table up at the master counts it is sent")
-    # the first cycle whose SYNC (k x cycle_s) is not before the request
-    cycle = min(max(math.ceil(requested / cycle_s - 1e-9), 0), len(t_set) - 1)
+    cycle = _command_cycle(requested, cycle_s, t_set)
     mode = ((SWITCH_MASTER_RELATIVE if event.master == "relative" else 0)
             | (SWITCH_SLAVE_RELATIVE if event.slave == "relative" else 0))
     slave_per_unit = float(piece.table.certificate.slave_counts_per_unit)

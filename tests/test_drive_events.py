@@ -350,3 +350,58 @@ def test_sdo_download_frames_follow_cia_301():
     # block: initiate, 7 bytes a frame, an acknowledgement per 127 segments, end
     assert sdo_download_frames(7 * 127, block=True) == 2 + 127 + 1 + 2
     assert sdo_download_frames(7 * 128, block=True) == 2 + 128 + 2 + 2
+
+
+# ----------------------------------------------------------------- a later request supersedes
+QUEUED_B = dict(SWITCH_B, activation="period_end")  # requested at 100 deg, due at 360 deg
+
+
+@pytest.mark.parametrize("mode", ["controller", "drive"])
+def test_a_cam_out_before_a_queued_switch_activates_supersedes_it(mode):
+    """A switch queued for the period end (360 deg) and a cam-out at 120 deg: the drive's cam-out
+    clears the queued switch (0x2001:01 = 5), so the switch never happens on either path; it is
+    reported superseded, not as a switch at 360 deg with the jump it never made."""
+    scene = _scene(mode, [QUEUED_B, CAM_OUT])
+    plan = plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+    switch, = plan.events.switches
+    assert switch.active_s is None and switch.superseded_by == "event[1]" and not switch.jumps
+    assert switch.to_dict()["superseded_by"] == "event[1]"
+    assert [m.event.action for m in plan.events.motions] == ["cam_out"]
+
+
+def test_an_immediate_offset_supersedes_a_queued_switch_on_both_paths_alike():
+    """A switch to product B queued for the period end (360 deg), then at 200 deg an immediate
+    offset: the drive's pending slot takes the offset's table (a new download replaces B) and
+    activates it at once, so B never comes; the controller-side plan does the same, and the
+    drive's set points are its targets bit for bit (before, the plan kept B's piece after the
+    offset's and looked its pieces up out of order). The drive takes an immediate activation
+    with the SDO write after the request's SYNC: its set points follow a few cycles later there."""
+    offset = {"action": "offset", "at_position": 200.0, "activation": "immediate", "slave_offset": 0.05,
+              "allow_jump": True}
+    _, drive = _drive_targets(_scene("drive", [QUEUED_B, offset]))
+    controller = _controller_targets([QUEUED_B, offset])
+    offset_cycle = int(controller.events.switches[1].active_s / 0.001)
+    assert controller.events.switches[0].active_s is None  # B never comes
+    assert [s.superseded_by for s in controller.events.switches] == ["event[1]", ""]
+    assert np.array_equal(drive[:offset_cycle], controller.targets[:offset_cycle])
+    assert np.array_equal(drive[offset_cycle + 3:], controller.targets[offset_cycle + 3:])
+
+
+def test_a_superseded_queued_switch_s_sdo_frames_are_counted_and_never_activate():
+    """Over the bus: the transition queued at 100 deg, a cam-out at 200 deg. CiA 301 by hand: the
+    blob of L bytes segmented (initiate request and response, then ceil(L / 7) segments, each
+    answered), 0x2001:07 (INTEGER64) segmented in two segments (6 frames), 0x2001:05, :08, :09..0C
+    and :01 expedited (2 frames each); the cam-out's 0x6083, 0x6084, 0x60A4:01 and 0x2001:01 (8).
+    The detail says the switch never activated, not that it acted."""
+    from hil_sim.rig import run_scene
+
+    events = [dict(TO_TRANSITION, at_position=100.0), dict(CAM_OUT, at_position=200.0)]
+    data = tomllib.loads((SCENES_DIR / "stiff_coupling.toml").read_text())
+    data.update(cam_mode="drive", event=events, duration={"cycles": 1010})  # past 360 deg
+    report = run_scene(parse_scene(data, base=SCENES_DIR, source="bus.toml").with_fidelity("ideal"))
+    blob, = [c.value for c in _drive_commands_of(100.0) if isinstance(c.value, bytes)]
+    frames = 2 + 2 * -(-len(blob) // 7) + 6 + 2 * (1 + 1 + 4 + 1)
+    detail = report.check("bus_load").detail
+    assert f"event[0] {frames} SDO frames" in detail and "event[1] 8 SDO frames" in detail
+    assert "event[0]" in detail and "never activated" in detail
+    assert report.check("switch_jumps").passed

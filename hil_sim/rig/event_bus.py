@@ -4,8 +4,9 @@ A drive-side switch is sent as SDO writes (:func:`hil_sim.events._drive_commands
 downloaded segmented into 0x2000 (CiA 301 segmented download: an initiate request and response,
 then a request and a response per 7 bytes of data; every SDO frame carries 8 data bytes) and the
 cam slot's objects written expedited (a request and a response each; a 64-bit object segmented:
-initiate and one segment). The rig's lock-step controller sends them in the cycle the event is
-requested in and the drive has them at once; on a real bus they are the lowest-priority frames
+the initiate and two segments, of 7 and 1 bytes, each answered: 6 frames). The rig's lock-step
+controller sends them in the cycle the event is requested in and the drive has them at once; on
+a real bus they are the lowest-priority frames
 and go in the bits the cyclic traffic leaves (:meth:`hil_sim.bus.BusLoad.queue_frame` counts them
 so, cycle by cycle). This module says what that means for each event:
 
@@ -53,7 +54,9 @@ def event_sdo(run, bus: dict) -> tuple[str, float | None]:
         kind, active_s = activation.get(transfer["event"], ("cam_out", None))
         text = f"event[{transfer['event']}] {transfer['frames']} SDO frames ({transfer['bits']} bits)"
         text += f" in cycles {queued}..{sent}" if sent is not None else f" from cycle {queued}, not all sent"
-        if kind in ("period_end", "master_position") and active_s is not None:
+        if kind in ("period_end", "master_position") and active_s is None:
+            text += ", never activated (superseded or not reached)"
+        elif kind in ("period_end", "master_position"):
             act = math.ceil(active_s / cycle_s - lead - 1e-9)  # the cycle whose set point switches
             if sent is None or sent >= act:
                 cycles = max(act - queued, 1)

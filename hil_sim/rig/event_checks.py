@@ -40,6 +40,9 @@ def _switch_check(switches, slave_unit: str, master_unit: str) -> Check:
     lines = []
     for s in switches:
         what = f"{s.event.label} {s.event.action} to {s.cam or 'the running cam'} ({s.event.activation})"
+        if s.superseded_by:
+            lines.append(f"{what}: superseded by {s.superseded_by} before it activated")
+            continue
         if s.active_s is None:
             lines.append(f"{what}: not reached within the run")
             continue

@@ -101,7 +101,9 @@ def fold_tables(rng) -> list:
     ecam_poly_fold where the core divides): the seed cam at M = 9 x 2^13 in 32-bit and 64-bit
     words; random tables at the fold's bound, (N - 1)(2N - 1) + 2^(32-k) <= 2^32 (N = 32767, k = 1:
     the largest odd N it takes at k = 1), just past it (N = 32769: the Barrett wrap), at k = 28
-    (N = 3) and at N = 2310 = 2 x 3 x 5 x 7 x 11 (k = 10), and a clamp (no wrap)."""
+    (N = 3) and at N = 2310 = 2 x 3 x 5 x 7 x 11 (k = 10), and a clamp (no wrap). N = 32769's
+    c = 2^31 mod N is 2, so a fold there would still be exact; N = 36829 (k = 1, c = 21487) is past
+    the bound with a sum that does pass 2^32 (fold_extremes), so a looser condition in init fails."""
     drrd = load_cam(ROOT / "firmware_tables" / "cams" / "combination_drrd.toml")
     low, high = drrd.slave_range
     out = []
@@ -111,7 +113,7 @@ def fold_tables(rng) -> list:
                                                                   slave_counts_per_unit=2**20 / (high - low),
                                                                   horner_bits=bits, certify=False)))
     for degree in (1, 3, 5):
-        for M, N in ((65534, 32767), (65538, 32769), (3 * 2**28, 3), (2310 * 2**10, 2310)):
+        for M, N in ((65534, 32767), (65538, 32769), (2 * 36829, 36829), (3 * 2**28, 3), (2310 * 2**10, 2310)):
             if N > 3000 and degree == 3:
                 continue  # (the bound is the same for every degree)
             out.append((f"fold-random-{degree}-{M}-{N}", cb.make_blob(cb.random_table(rng, degree, True, M, N))))
@@ -129,6 +131,17 @@ def test_horner_bits_32_gives_narrow_tables_and_says_what_it_costs():
     assert narrow.format.work_bits < wide.format.work_bits
     assert narrow.report["quantization_counts"] > wide.report["quantization_counts"]
     assert narrow.report["max_error_counts"] <= narrow.report["predicted_error_counts"]
+
+
+def fold_extremes(points: int) -> np.ndarray:
+    """Masters m = hi 2^32 + lo at the ends of ecam_poly_fold's sum x = (hi % N) c + floor(lo / 2^k)
+    + N (N - 1) for a period of N intervals of 2^k: hi % N = N - 1 with lo = 2^32 - 1 (the largest
+    x, which the condition in init keeps below 2^32) and hi % N = -(N - 1) with lo = 0 (the
+    smallest), for the smallest and the largest such hi of either sign."""
+    n = points - 1
+    top = (2**31 - 1) - ((2**31 - 1) - (n - 1)) % n  # the largest hi <= INT32_MAX with hi % n = n - 1
+    ends = [(n - 1, 2**32 - 1), (top, 2**32 - 1), (-(n - 1), 0), (-top, 0), (n - 1, 0), (-(n - 1), 2**32 - 1)]
+    return np.array([((hi % 2**32) << 32 | lo) - ((hi < 0) << 64) for hi, lo in ends], dtype=np.int64)
 
 
 @functools.lru_cache(maxsize=1)
@@ -149,8 +162,10 @@ def _cases() -> tuple:
     rng_fold = np.random.default_rng(2710)
     for name, table in fold_tables(rng_fold):
         blob = table if isinstance(table, bytes) else table.to_bytes()
-        m = CamTable.from_bytes(blob).master_counts
-        queries = np.concatenate([edges, np.array([m - 1, m, -m, -m - 1]), rng_fold.integers(-3 * m, 3 * m, 1000),
+        parsed = CamTable.from_bytes(blob)
+        m = parsed.master_counts
+        queries = np.concatenate([edges, np.array([m - 1, m, -m, -m - 1]), fold_extremes(parsed.points),
+                                  rng_fold.integers(-3 * m, 3 * m, 1000),
                                   rng_fold.integers(-(2**63), 2**63 - 1, 3000, endpoint=True)])
         out.append((name, blob, queries.astype(np.int64)))
     for degree in (1, 3, 5):

@@ -22,6 +22,8 @@ its speed (the voltage limit included); the maximum speed.
 * :func:`dc_link_energy`, :func:`regenerated_energy`, :func:`dc_link_stored_energy`: what the DC
   link absorbs between its nominal and its brake-chopper voltage, and the energy a braking duty
   puts into it, a regenerative infeed returning braking power to the line up to its rating;
+* :func:`copper_loss`, :func:`hot_winding_resistance`: the winding's losses, which the infeed
+  supplies on top of the shaft power;
 * :func:`infeed_power`: the power the infeed carries (drawn, returned) for a shaft power;
 * :func:`series_stiffness`, :func:`stiffness_at_output`, :func:`arcmin_stiffness`: springs in
   series through a gear, the gearhead's catalogue unit;
@@ -432,13 +434,39 @@ def regenerated_energy(power, dt: float, capacity: float = math.inf,
     return float(stored.max()) if stored.size else 0.0
 
 
-def infeed_power(power, regenerative_power: float = 0.0) -> np.ndarray | float:
+#: Copper's temperature coefficient of resistance at 20 degC [1/K]: IEC 60028 (International
+#: standard of resistance for copper), alpha_20 = 0.00393 /K for annealed copper.
+COPPER_ALPHA_20 = 0.00393
+
+
+def hot_winding_resistance(resistance_20: float, temperature_rise: float = 100.0) -> float:
+    """A copper winding's resistance [ohm] at ``temperature_rise`` [K] above 20 degC,
+    ``R_20 (1 + alpha_20 rise)`` (:data:`COPPER_ALPHA_20`); the default 100 K is the winding
+    rise of the catalogue's "100 K values" (Siemens 1FT7 configuration manual 01/2009, table
+    4-8), at which a motor runs its rated duty."""
+    return (number("resistance_20", resistance_20, minimum=0.0)
+            * (1.0 + COPPER_ALPHA_20 * number("temperature_rise", temperature_rise, minimum=0.0)))
+
+
+def copper_loss(current, resistance: float) -> np.ndarray | float:
+    """The copper losses of a three-phase winding [W], ``3 I^2 R`` for the phase current I
+    [A rms] and the phase resistance R [ohm] (the catalogue's R_ph)."""
+    i = _array("current", current)
+    value = 3.0 * i * i * number("resistance", resistance, minimum=0.0)
+    return float(value) if value.ndim == 0 else value
+
+
+def infeed_power(power, regenerative_power: float = 0.0, losses=0.0) -> np.ndarray | float:
     """The power an infeed carries for a shaft power [W]: positive drawn from the line,
     negative returned to it.
 
-    Motoring power is drawn from the line (the DC link's store is left out: the safe side for
-    the infeed's rating); braking power is returned up to ``regenerative_power`` (the rest stays
-    in the DC link, :func:`dc_link_stored_energy`), none by a rectifier infeed (0).
+    The line supplies the shaft power and the losses on its way, P_line = P_mech + P_losses
+    (Siemens SINAMICS Low Voltage Engineering Manual, November 2015, "Dimensioning of the
+    Active Infeed", p. 106/528: P_Line = P_mech + P_L Mot + P_L MoMo + P_L AI): motoring draws
+    both, braking returns the shaft power less them. Motoring power is drawn from the line (the
+    DC link's store is left out: the safe side for the infeed's rating); braking power is
+    returned up to ``regenerative_power`` (the rest stays in the DC link,
+    :func:`dc_link_stored_energy`), none by a rectifier infeed (0).
 
     Parameters
     ----------
@@ -446,15 +474,21 @@ def infeed_power(power, regenerative_power: float = 0.0) -> np.ndarray | float:
         Shaft power [W], positive when motoring.
     regenerative_power : float
         The most power the infeed returns to the line [W], >= 0.
+    losses : float or array_like
+        The losses between the line and the shaft at each sample [W], >= 0 (for example the
+        winding's :func:`copper_loss`; 0: none counted).
 
     Returns
     -------
     float or numpy.ndarray
-        ``max(power, -regenerative_power)`` [W].
+        ``max(power + losses, -regenerative_power)`` [W].
     """
     p = _array("power", power)
     limit = number("regenerative_power", regenerative_power, minimum=0.0)
-    value = np.maximum(p, -limit)
+    loss = _array("losses", losses)
+    if not np.all(loss >= 0.0):  # (NaN too)
+        raise fail("losses", float(np.min(loss)), ">= 0")
+    value = np.maximum(p + loss, -limit)
     return float(value) if value.ndim == 0 else value
 
 

@@ -293,6 +293,24 @@ def test_power_through_the_infeed():
     assert np.array_equal(sizing.infeed_power([-500.0, 100.0], 0.0), [0.0, 100.0])
     with pytest.raises(InputError, match="regenerative_power"):
         sizing.infeed_power(1.0, -1.0)
+    # the line supplies the losses too (P_line = P_mech + P_losses): 100 W of them are drawn on
+    # top of motoring, and braking returns that much less
+    assert sizing.infeed_power(500.0, 300.0, 100.0) == 600.0
+    assert sizing.infeed_power(-200.0, 300.0, 100.0) == -100.0
+    assert np.array_equal(sizing.infeed_power([-500.0, 100.0], 300.0, [100.0, 50.0]), [-300.0, 150.0])
+    with pytest.raises(InputError, match=r"losses: -1 should be >= 0"):
+        sizing.infeed_power(1.0, 0.0, -1.0)
+
+
+def test_copper_losses_of_a_hot_winding():
+    # 1FT7044-AK7: R_ph 0.61 ohm at 20 degC; copper at 120 degC (the 100 K data):
+    # 0.61 x (1 + 0.00393 x 100) = 0.849730 ohm; at I0 = 5.7 A, 3 x 5.7^2 x 0.84973 = 82.826 W
+    hot = sizing.hot_winding_resistance(0.61)
+    assert hot == pytest.approx(0.84973, rel=1e-12)
+    assert sizing.copper_loss(5.7, hot) == pytest.approx(3 * 5.7**2 * 0.84973, rel=1e-12)
+    assert np.allclose(sizing.copper_loss([0.0, -2.0], 1.0), [0.0, 12.0])
+    with pytest.raises(InputError, match="resistance"):
+        sizing.copper_loss(1.0, -0.1)
 
 
 def test_the_active_line_modules_rating_is_the_manuals():
@@ -313,15 +331,19 @@ def test_infeed_power_fails_on_a_small_infeed():
     line = checks["infeed_power"]
     assert not line.passed and line.limit == 500.0 and "at master" in line.detail
     # the value is the larger share: the cycle's peak power through the infeed (the shaft's
-    # motoring peak; braking is returned only up to 500 W) against the peak, here the rated
+    # motoring peak and the hot winding's copper losses, 3 I^2 R_ph (1 + 0.00393 x 100) with
+    # R_ph = 0.61 ohm; braking is returned only up to 500 W) against the peak, here the rated
     run, _ = prepare(_knife(2000.0))
     duty = duty_cycle(run)
-    assert line.value == pytest.approx(float(np.max(np.abs(np.maximum(duty.power, -500.0)))))
+    current = sizing.current_for_torque(duty.motor_torque, [[0.0, 0.0], [5.7, 5.0], [18.0, 15.0], [30.0, 23.0]])
+    drawn = duty.power + 3.0 * current**2 * 0.61 * 1.393
+    assert line.value == pytest.approx(float(np.max(np.abs(np.maximum(drawn, -500.0)))))
+    assert line.value > float(np.max(duty.power)) + 100.0  # the losses are not small
     assert checks["summary"]["components"]["infeed"]["utilisation_percent"] > 100.0
     # the RMS counts where it is the larger share: a peak rating far above the rated power
     rms = _checks(_knife(2000.0, drive={"infeed_power": 500.0, "infeed_peak_power": 1e6}))
     assert rms["infeed_power"].limit == 500.0
-    assert rms["infeed_power"].value == pytest.approx(sizing.rms_torque(duty.power))
+    assert rms["infeed_power"].value == pytest.approx(sizing.rms_torque(np.maximum(drawn, -1e6)))
 
 
 def test_infeed_fields_are_checked_where_they_enter():

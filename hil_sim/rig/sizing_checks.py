@@ -262,22 +262,32 @@ def infeed_power_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
     """The power through the infeed (drawn, and returned where it regenerates): its RMS over
     the cycle against the rated power, its peak against the peak power; the larger share
     counts."""
-    infeed = run.scene.sizing.infeed
-    # without an infeed in the scene, all the shaft power (the unrated figure)
-    line = (duty.power if infeed is None
-            else sizing.infeed_power(duty.power, infeed.regenerative_power))
+    infeed, motor = run.scene.sizing.infeed, run.scene.sizing.motor
+    # the line supplies the winding's copper losses on top of the shaft power (P_line = P_mech +
+    # losses, ecam.sizing.infeed_power), the winding hot (the catalogue's 100 K rise); the
+    # modules' own losses are not in the catalogue
+    losses = 0.0
+    if motor is not None and motor.winding_resistance > 0.0:
+        losses = sizing.copper_loss(sizing.current_for_torque(duty.motor_torque, motor.current_points()),
+                                    sizing.hot_winding_resistance(motor.winding_resistance))
+    # without an infeed in the scene, all the shaft power and losses (the unrated figure)
+    line = (duty.power + losses if infeed is None
+            else sizing.infeed_power(duty.power, infeed.regenerative_power, losses))
     rms = sizing.rms_torque(line)  # the RMS of any series: the infeed's current at its voltage
     worst = int(np.argmax(np.abs(line)))
     peak = float(abs(line[worst]))
     facts = {"rms_power": rms, "peak_power": peak}
+    with_losses = (f"; the winding's copper losses included, up to {float(np.max(losses)):.4g} W "
+                   "(3 I^2 R at 100 K rise)" if motor is not None and motor.winding_resistance > 0.0
+                   else "; no winding resistance in [motor]: copper losses left out")
     if infeed is None:
         return check("infeed_power", rms, None, "W",
-                     f"RMS of the shaft power over the cam cycle (peak {peak:.4g} W "
-                     f"{_where(run, duty, worst)}); no infeed in [drive]: not rated"), facts
+                     f"RMS of the power the drive draws over the cam cycle (peak {peak:.4g} W "
+                     f"{_where(run, duty, worst)}){with_losses}; no infeed in [drive]: not rated"), facts
     detail = (f"RMS {rms:.4g} W over the cam cycle against the rated {infeed.rated_power:g} W, "
               f"peak {peak:.4g} W {_where(run, duty, worst)} against the peak "
               f"{infeed.peak_power:g} W ({infeed.kind}; the larger share counts; the DC "
-              "link's store left out, the safe side)")
+              f"link's store left out, the safe side){with_losses}")
     if peak / infeed.peak_power > rms / infeed.rated_power:
         return check("infeed_power", peak, infeed.peak_power, "W", detail), facts
     return check("infeed_power", rms, infeed.rated_power, "W", detail), facts

@@ -637,10 +637,14 @@ def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: 
     if event.activation == "master_position":
         position = round(event.activation_position * per_unit)
         seen = program.master_at(float(t_set[cycle]))
-        if seen * per_unit >= position:
+        # the drive compares whole counts (the master streamed rounded, as master_end): one that
+        # stands on the position has not crossed it going forwards, and never will
+        seen_counts = int(np.rint(seen * per_unit))
+        if seen_counts >= position:
             raise InputError(f"{event.label}.activation_position: {event.activation_position:g} should be "
-                             f"ahead of the master the drive has seen at the request ({seen:.6g}) with cam_mode "
-                             "'drive': the drive activates where the master crosses it (TwinCAT MC3 "
+                             f"ahead of the master the drive has seen at the request ({seen:.6g}: "
+                             f"{seen_counts} counts, the position {position}) with cam_mode 'drive': the "
+                             "drive activates where the master crosses it (TwinCAT MC3 "
                              "ECamActivationMode.AtMasterAbsolutePosition)")
         out.append(DriveCommand(cycle, *CAM_ACTIVATION_POSITION, position, event.index))
     activate = {"immediate": CAM_COMMAND_ACTIVATE, "period_end": CAM_COMMAND_ACTIVATE_AT_PERIOD_END,

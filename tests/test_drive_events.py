@@ -200,6 +200,18 @@ def test_a_master_position_the_drive_has_passed_is_refused():
         plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
 
 
+def test_a_master_position_the_drive_stands_on_at_the_request_is_refused():
+    """The master the drive has seen at the request is 279 x 36.864 = 10321.92 counts, streamed
+    as 10322; an activation position of 10322 counts is ahead of the exact master but the drive
+    stands on it, so going forwards it never crosses it (the switch would silently never happen
+    while the plan reports it): refused, as a position behind the master is."""
+    event = dict(SWITCH_B, at_position=100.3, activation="master_position", activation_position=10322 / 102.4)
+    scene = _scene("drive", [event])
+    with pytest.raises(InputError, match=r"activation_position: 100\.801 should be ahead .* 10322 counts, the "
+                       r"position 10322\)"):
+        plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+
+
 def test_drive_side_offsets_master_position_and_cam_out_over_the_bus_are_the_bus_free_run():
     """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented; the cam-out's 0x6083, 0x6084,
     0x60A4:01) reach the drive over the bus and give the bus-free path's physics bit for bit: the

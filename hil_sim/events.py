@@ -635,7 +635,7 @@ def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: 
     for key, value in _coupling_values(event, per_unit, slave_per_unit):
         out.append(DriveCommand(cycle, *key, value, event.index))
     if event.activation == "master_position":
-        position = round(event.activation_position * per_unit)
+        position = _counts(event, "activation_position", event.activation_position, per_unit, 64, "master")
         seen = program.master_at(float(t_set[cycle]))
         # the drive compares whole counts (the master streamed rounded, as master_end): one that
         # stands on the position has not crossed it going forwards, and never will
@@ -656,14 +656,26 @@ def _drive_commands(event: Event, program: _Program, requested: float, cycle_s: 
 def _coupling_values(event: Event, per_unit: float, slave_per_unit: float) -> list:
     """MC_CamIn's offsets [counts] and scaling (numerator, denominator: the nearest fraction
     whose terms fit UNSIGNED32) as the drive takes them (0x2001:07..0C)."""
-    out = [(CAM_MASTER_OFFSET, round(event.master_offset * per_unit)),
-           (CAM_SLAVE_OFFSET, round(event.slave_offset * slave_per_unit))]
+    out = [(CAM_MASTER_OFFSET, _counts(event, "master_offset", event.master_offset, per_unit, 64, "master")),
+           (CAM_SLAVE_OFFSET, _counts(event, "slave_offset", event.slave_offset, slave_per_unit, 32, "slave"))]
     for numerator, denominator, scaling in (
             (CAM_MASTER_SCALING_NUMERATOR, CAM_MASTER_SCALING_DENOMINATOR, event.master_scaling),
             (CAM_SLAVE_SCALING_NUMERATOR, CAM_SLAVE_SCALING_DENOMINATOR, event.slave_scaling)):
         ratio = scaling_ratio(scaling)
         out += [(numerator, ratio[0]), (denominator, ratio[1])]
     return out
+
+
+def _counts(event: Event, name: str, value: float, per_unit: float, bits: int, axis: str) -> int:
+    """``value`` [units] in the counts of a signed object of ``bits`` (0x2001:06/07 INTEGER64,
+    0x2001:08 INTEGER32), or a one-line error naming the field, the value and the range."""
+    counts = round(value * per_unit)
+    limit = 1 << (bits - 1)
+    if not -limit <= counts < limit:
+        raise InputError(f"{event.label}.{name}: {value:g} should be within {-limit / per_unit:.6g}.."
+                         f"{(limit - 1) / per_unit:.6g} {axis} units with cam_mode 'drive' (INTEGER{bits} "
+                         f"counts, {per_unit:g} per unit)")
+    return counts
 
 
 def _switch(event: Event, program: _Program, requested: float, scale: float,

@@ -212,6 +212,15 @@ def test_a_master_position_the_drive_stands_on_at_the_request_is_refused():
         plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
 
 
+def test_a_slave_offset_past_integer32_counts_is_refused_in_one_line():
+    """0x2001:08 SlaveOffset is INTEGER32: 30000 in at 100000 counts/in is 3e9 counts, past
+    2^31 - 1 = 2147483647 (21474.8 in); before, the SDO write raised a traceback over the bus."""
+    scene = _scene("drive", [dict(SWITCH_B, activation="immediate", slave_offset=30000.0)])
+    with pytest.raises(InputError, match=r"event\[0\]\.slave_offset: 30000 should be within -21474\.8\.\.21474\.8 "
+                       r"slave units with cam_mode 'drive' \(INTEGER32 counts"):
+        plan_run(scene, compile_cam(scene), np.zeros(CYCLES), CYCLES)
+
+
 def test_drive_side_offsets_master_position_and_cam_out_over_the_bus_are_the_bus_free_run():
     """The SDO writes (0x2001:06 and :07 are INTEGER64: segmented; the cam-out's 0x6083, 0x6084,
     0x60A4:01) reach the drive over the bus and give the bus-free path's physics bit for bit: the

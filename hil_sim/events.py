@@ -543,7 +543,11 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
             program.out = (requested, segment)
             motions.append(_motion(event, requested, segment))
         else:
-            switch = _switch(event, program, requested, scale, per_unit)
+            drive_at = None
+            if drive_side and event.activation == "immediate":  # where the drive takes it
+                cycle = _command_cycle(requested, cycle_s, t_set)
+                drive_at = (float(t_set[cycle]), _streamed(program, float(t_set[cycle])))
+            switch = _switch(event, program, requested, scale, per_unit, drive_at)
             switches.append(switch)
             if switch.ramp is not None:  # its correction is checked against its limits
                 ramp = switch.ramp
@@ -678,8 +682,17 @@ def _counts(event: Event, name: str, value: float, per_unit: float, bits: int, a
     return counts
 
 
+def _streamed(program: _Program, t: float) -> float:
+    """The master the drive is sent at time t, in whole counts (as master_end) [master units]."""
+    return float(np.rint(program.master_at(t) * program.per_unit)) / program.per_unit
+
+
 def _switch(event: Event, program: _Program, requested: float, scale: float,
-            per_unit: float) -> Switch:
+            per_unit: float, drive_at: tuple | None = None) -> Switch:
+    """A switch or offset as it happens; ``drive_at`` (time, master): drive-side, an immediate
+    one is taken by the drive with the write after the request's SYNC, at the master it
+    received last (0x2001:01 = 1: :meth:`hil_sim.drive.cam_slot.CamSlot.write_command`), so the
+    ideal path switches there too, as a drive-side cam-out starts where the drive starts it."""
     running = program.piece_at(requested)
     if event.action == "switch":
         new_profile, table = _compile(event.cam, scale, per_unit)
@@ -690,7 +703,7 @@ def _switch(event: Event, program: _Program, requested: float, scale: float,
                                  "running cam's")
     else:
         new_profile, table = running.profile, running.table
-    active, master = _activation(event, program, requested)
+    active, master = drive_at or _activation(event, program, requested)
     if active is None:
         return Switch(event, requested, None, cam=new_profile.name or "")
     running = program.piece_at(active)

@@ -174,6 +174,21 @@ def test_drive_side_set_points_are_the_controller_side_ones(name, event):
     assert not np.array_equal(controller.targets, _controller_targets([]).targets)  # the event did something
 
 
+@pytest.mark.parametrize("master,slave", [("relative", "absolute"), ("absolute", "relative"), ("relative", "relative")])
+def test_an_immediate_drive_side_switch_is_placed_where_the_drive_takes_it(master, slave):
+    """0x2001:01 = 1 is written after the SYNC of the request's cycle and the drive places the
+    table at the master it received last (10322 counts, 279 x 36.864 rounded): the scene's
+    ideal path switches there too, so the drive's set points are the plan's after the switch,
+    bit for bit (only the activation cycle's own set point differs, the drive's still the old
+    cam's). Before, the plan placed it at the exact master of the request (100.3 deg), up to a
+    cycle's travel earlier: relative placements stayed 0.02 in off, ten times the tracking limit."""
+    event = dict(SWITCH_B, at_position=100.3, activation="immediate", master=master, slave=slave)
+    plan, drive = _drive_targets(_scene("drive", [event]))
+    switch, = plan.events.switches
+    assert switch.master == 10322 / 102.4 and switch.active_s == pytest.approx(0.280)
+    assert np.flatnonzero(drive != plan.targets).tolist() == [279]
+
+
 def test_drive_side_scaling_is_within_a_master_count_of_controller_side():
     """MasterScaling 0.5 and SlaveScaling 1.25 at the period end: the drive scales the master it
     receives in whole counts, the controller the exact one, so the table's master coordinate

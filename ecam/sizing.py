@@ -21,7 +21,8 @@ its speed (the voltage limit included); the maximum speed.
   (catalogue points: a servo motor saturates above its stall current);
 * :func:`dc_link_energy`, :func:`regenerated_energy`, :func:`dc_link_stored_energy`: what the DC
   link absorbs between its nominal and its brake-chopper voltage, and the energy a braking duty
-  puts into it, a regenerative infeed returning braking power to the line up to its rating;
+  puts into it, a regenerative infeed returning braking power to the line up to its rating
+  (:func:`energy_to_line`: how much per cycle);
 * :func:`copper_loss`, :func:`hot_winding_resistance`: the winding's losses, which the infeed
   supplies on top of the shaft power;
 * :func:`infeed_power`: the power the infeed carries (drawn, returned) for a shaft power;
@@ -402,6 +403,19 @@ def dc_link_stored_energy(power, dt: float, capacity: float = math.inf,
     Losses in the winding, the inverter and the infeed are left out: they take energy from the
     braking, so the values are on the safe side.
     """
+    return _dc_link_flow(power, dt, capacity, brake_power, line_power, periodic)[0]
+
+
+def energy_to_line(power, dt: float, capacity: float = math.inf, brake_power: float = 0.0,
+                   line_power: float = 0.0, periodic: bool = True) -> float:
+    """The energy a regenerative infeed returns to the line over the duty [J], in the model of
+    :func:`dc_link_stored_energy` (the same parameters): the braking power it takes as it
+    comes, and the stored energy it takes back down to the nominal voltage afterwards."""
+    return float(np.sum(_dc_link_flow(power, dt, capacity, brake_power, line_power, periodic)[1]))
+
+
+def _dc_link_flow(power, dt, capacity, brake_power, line_power, periodic) -> tuple[np.ndarray, np.ndarray]:
+    """(stored energy after each sample, energy returned to the line in each sample) [J]."""
     p = _array("power", power).ravel()
     dt = positive("dt", dt)
     if capacity != math.inf:  # no limit: the largest stored energy is all there is to say
@@ -410,13 +424,16 @@ def dc_link_stored_energy(power, dt: float, capacity: float = math.inf,
     line = number("line_power", line_power, minimum=0.0) * dt
     stored = 0.0
     out = [0.0] * p.size
+    returned = [0.0] * p.size
     for _ in range(2 if periodic else 1):
         for i, value in enumerate((-p * dt).tolist()):
-            stored = max(0.0, stored + value - line)
+            charged = stored + value
+            returned[i] = min(max(charged, 0.0), line)
+            stored = max(0.0, charged - line)
             if stored > capacity and brake > 0.0:
                 stored = max(capacity, stored - brake * dt)
             out[i] = stored
-    return np.array(out)
+    return np.array(out), np.array(returned)
 
 
 def regenerated_energy(power, dt: float, capacity: float = math.inf,

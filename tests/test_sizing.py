@@ -285,6 +285,36 @@ def test_dc_link_energy_with_a_regenerative_infeed():
         sizing.dc_link_stored_energy(power, 1e-3, line_power=-1.0)
 
 
+def test_energy_to_the_line_includes_what_the_link_stored():
+    # 100 W braking for 0.5 s, then 200 W motoring for 0.5 s, a 60 W infeed: 60 W x 0.5 s = 30 J
+    # while braking, then the 20 J stored drain at 200 W (motor) + 60 W (infeed) for 20/260 s, of
+    # which the infeed takes 60 x 20 / 260 = 4.615 J: 34.615 J per cycle
+    power = np.r_[np.full(500, -100.0), np.full(500, 200.0)]
+    assert sizing.energy_to_line(power, 1e-3, line_power=60.0) == pytest.approx(30.0 + 60.0 * 20.0 / 260.0,
+                                                                                abs=0.06)
+    # a block of braking across the seam of a periodic duty counts once, all of it
+    seam = np.r_[np.full(250, -100.0), np.full(500, 200.0), np.full(250, -100.0)]
+    assert sizing.energy_to_line(seam, 1e-3, line_power=60.0) == pytest.approx(
+        sizing.energy_to_line(power, 1e-3, line_power=60.0), abs=1e-9)
+    # a rectifier returns nothing; an infeed above the braking peak returns all the braking
+    assert sizing.energy_to_line(power, 1e-3) == 0.0
+    assert sizing.energy_to_line(power, 1e-3, line_power=150.0) == pytest.approx(50.0)
+    # what the brake resistor burns does not reach the line: a 20 J link, 40 W resistor and 30 W
+    # infeed (the hand case above: 20 + 30 (0.5 - 2/7) J stored when the braking ends) returns
+    # 30 W x 0.5 s while braking, then 30 W while the link drains, at 200 + 30 + 40 W down to
+    # 20 J (the resistor still on) and at 200 + 30 W below
+    above = 30.0 * (0.5 - 20.0 / 70.0)
+    hand = 15.0 + 30.0 * (above / 270.0 + 20.0 / 230.0)
+    assert sizing.energy_to_line(power, 1e-3, 20.0, 40.0, 30.0) == pytest.approx(hand, abs=0.05)
+    # the knife on a 300 W infeed: its summary counts what the link stored and gave back too
+    checks = _checks(_knife(2000.0, drive={"infeed_power": 300.0}))
+    duty = duty_cycle(prepare(_knife(2000.0))[0])
+    braking_only = float(np.sum(np.minimum(np.maximum(-duty.power, 0.0), 300.0)) * duty.dt)
+    to_line = checks["summary"]["components"]["infeed"]["required"]["energy_to_line_per_cycle"]
+    assert to_line == pytest.approx(sizing.energy_to_line(duty.power, duty.dt, 30.2913, 0.0, 300.0), rel=1e-3)
+    assert to_line > braking_only + 1.0
+
+
 def test_power_through_the_infeed():
     # motoring drawn in full; braking returned up to the infeed's power; none by a rectifier
     assert sizing.infeed_power(500.0, 300.0) == 500.0

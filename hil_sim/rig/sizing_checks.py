@@ -232,7 +232,7 @@ def regeneration_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
     stored = sizing.dc_link_stored_energy(duty.power, duty.dt, capacity, brake, line)
     fullest = int(np.argmax(stored))
     hardest = int(np.argmax(braking))
-    to_line = float(np.sum(np.minimum(braking, line)) * duty.dt)
+    to_line = sizing.energy_to_line(duty.power, duty.dt, capacity, brake, line)
     facts = {"energy_returned_per_cycle": returned, "largest_stored_energy": float(stored[fullest]),
              "peak_braking_power": float(braking[hardest]),
              "energy_to_line_per_cycle": to_line,

@@ -143,6 +143,23 @@ def test_a_master_position_activation_switches_where_the_master_crosses_it_eithe
     assert not slot.values[CAM_STATUS] & CAM_STATUS_QUEUED
 
 
+def test_scaling_rounds_half_up_at_the_int64_edge():
+    """round_ratio at the documented extremes (|master - zero| up to 2^31 - 1, terms up to
+    2^32 - 1) against exact rational half-up rounding, floor(a N / D + 1/2)."""
+    import math
+    from fractions import Fraction
+
+    rng = np.random.default_rng(2301)
+    big = 2**32 - 1
+    for _ in range(300):
+        a = int(rng.integers(-(2**31) + 1, 2**31))
+        n, d = int(rng.integers(1, big + 1)), int(rng.integers(1, big + 1))
+        assert round_ratio(a, n, d) == math.floor(Fraction(a * n, d) + Fraction(1, 2)), (a, n, d)
+    # +-(2^31 - 1) x (1 + 1 / (2^32 - 2)) = +-(2^31 - 1 + 1/2) exactly: half up both ways
+    assert [round_ratio(a, big, big - 1) for a in (2**31 - 1, -(2**31) + 1)] == [2**31, -(2**31) + 1]
+    assert round_ratio(5, 1, 2) == 3 and round_ratio(-5, 1, 2) == -2
+
+
 def test_scaling_is_a_ratio_of_integers_rounded_half_up():
     """MasterScaling and SlaveScaling as numerator/denominator (0x2001:09..0C): X = round(N (m -
     zero) / D) + MasterOffset, slave = base + SlaveOffset + round(N CAM(X) / D), half up."""

@@ -18,9 +18,11 @@ and taken when a table is activated (with 0x2001:05):
 **Scaling is a ratio of two UNSIGNED32**, numerator and denominator (0x2001:09/0A master,
 0x2001:0B/0C slave), as CiA 402 gives its own ratios (0x6091 gear ratio, 0x6092 feed constant:
 numerator and divisor sub-indices, CiA 402-2 / IEC 61800-7-201): every rational scaling (2/3, a
-gearbox's 37/12) is exact, the products fit int64 for a master within 2^31 counts of its zero, and
-the result is the same bits on every target. Rounding is half up (``floor((2 a + d) / 2 d)``), the
-rule of the table's own lookup. A ratio of 1 (N = D) takes the unscaled path, SwitchPair's
+gearbox's 37/12) is exact, the product ``a N`` fits int64 for a master within 2^31 counts of its
+zero, and the result is the same bits on every target. Rounding is half up, the rule of the
+table's own lookup, taken from the floored quotient and its remainder (``q = floor(a N / D)``, plus
+one where ``2 (a N - q D) >= D``): the textbook ``floor((2 a N + D) / 2 D)`` doubles the product
+and overflows int64 for ``|a| >= 2^30`` with a numerator near 2^32. A ratio of 1 (N = D) takes the unscaled path, SwitchPair's
 (:mod:`ecam.table_pair`) arithmetic exactly: ``X = master - (zero - MasterOffset)``, slave
 ``CAM(X) + SlaveOffset + base``.
 """
@@ -47,8 +49,10 @@ def scaling_ratio(scaling: float) -> tuple[int, int]:
 
 
 def round_ratio(value: int, numerator: int, denominator: int) -> int:
-    """``value x numerator / denominator`` rounded half up, in exact integers."""
-    return (2 * value * numerator + denominator) // (2 * denominator)
+    """``value x numerator / denominator`` rounded half up, in exact integers, every
+    intermediate within int64 for ``|value| < 2^31`` and UNSIGNED32 terms (module docstring)."""
+    quotient, remainder = divmod(value * numerator, denominator)  # floor; 0 <= remainder < D
+    return quotient + (2 * remainder >= denominator)
 
 
 @dataclass(frozen=True)

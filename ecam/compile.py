@@ -243,6 +243,7 @@ class _Job:
             target = min(tol_counts, FINAL_ROUNDING_COUNTS + interp_tol_counts)
         best = None
         floor_seen = math.inf
+        floor_built = False  # whether floor_seen is a built table's bound, or only a prediction
         for degree in degrees:
             for intervals in self.intervals(degree):
                 if intervals + 1 > MAX_POINTS:
@@ -250,7 +251,8 @@ class _Job:
                 # the final rounding alone costs 1/2 count: a lower bound of the certified error
                 predicted = self.predict_interpolation(degree, intervals) + FINAL_ROUNDING_COUNTS
                 if predicted > target:
-                    floor_seen = min(floor_seen, predicted)
+                    if predicted < floor_seen:
+                        floor_seen, floor_built = predicted, False
                     continue
                 nbytes = HEADER_BYTES + (intervals + 1) * 4 * ((degree + 1) // 2)
                 if best is not None and nbytes >= best[0]:
@@ -262,18 +264,22 @@ class _Job:
                 if table.certificate.predicted_error_counts <= target:
                     best = (nbytes, table)
                     break
-                floor_seen = min(floor_seen, table.certificate.predicted_error_counts)
+                if table.certificate.predicted_error_counts < floor_seen:
+                    floor_seen, floor_built = table.certificate.predicted_error_counts, True
+        # a floor no table was built for is the interpolation's prediction alone: the stored
+        # data's rounding and the arithmetic would add to it, so it is a lower bound
+        floor_kind = "" if floor_built else ", at least (the interpolation's prediction alone: that table was not built)"
         if best is None and target < tol_counts:
             raise TableFormatError(
                 f"interpolation_tolerance {interp_tol_counts:.4g} counts ({interp_tol_counts / self.S:.4g} "
                 f"{self.profile.slave_unit}) cannot be met within {MAX_POINTS} points; the best bound found "
-                f"is {floor_seen - FINAL_ROUNDING_COUNTS:.6g} counts above the final rounding's 1/2 count"
+                f"is {floor_seen - FINAL_ROUNDING_COUNTS:.6g} counts above the final rounding's 1/2 count{floor_kind}"
             )
         if best is None:
             raise TableFormatError(
                 f"tolerance {tol_counts:.4g} counts ({tol_counts / self.S:.4g} {self.profile.slave_unit}) cannot be "
                 f"met within {MAX_POINTS} points; the best bound found is {floor_seen:.6g} counts "
-                f"(the final rounding to whole counts alone costs 1/2 count)"
+                f"(the final rounding to whole counts alone costs 1/2 count){floor_kind}"
             )
         _, table = best
         if certify:  # the winner was built uncertified; measure it rather than build it again

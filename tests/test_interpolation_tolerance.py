@@ -15,7 +15,7 @@ import pytest
 
 import ecam
 from ecam.camfile import parse_cam
-from ecam.errors import CamFileError, InputError
+from ecam.errors import CamFileError, InputError, TableFormatError
 from ecam.table_spec import TableSpec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -106,3 +106,17 @@ def test_ecam_compile_notes_the_share_above_the_rounding_where_the_tolerance_is_
                                             certify=False)) is None
     assert rounding_hint(ecam.compile_table(knife, certify=False)) is None  # the file's 2 counts
     assert rounding_hint(ecam.compile_table(knife, points=13, interp="quintic", certify=False)) is None
+
+
+def test_a_refusal_says_whether_its_best_bound_is_a_built_tables_or_a_prediction(knife):
+    """The drum (2^26 counts per turn) at 2^12 master counts: no size's prediction meets 1e-6
+    counts above the rounding, so the figure named is the interpolation's prediction alone, a
+    lower bound (the 4097-point table, built, certifies 1e-3 counts above it); at 0.5009 counts
+    in 32-bit words the sizes predicted below it were built, and the figure is their bound."""
+    drum = dict(interp="quintic", master_counts=2**12, slave_counts_per_unit=2**26 / 360, certify=False)
+    with pytest.raises(TableFormatError, match=r"best bound found is 3\.46\d*e-06 counts above the final "
+                                               r"rounding's 1/2 count, at least \(the interpolation's prediction"):
+        ecam.compile_table(knife, tolerance="1 counts", interpolation_tolerance="1e-6 counts", **drum)
+    with pytest.raises(TableFormatError, match=r"best bound found is 0\.511\d* counts \(the final rounding to whole "
+                                               r"counts alone costs 1/2 count\)$"):
+        ecam.compile_table(knife, tolerance="0.5009 counts", horner_bits=32, **drum)

@@ -185,8 +185,8 @@ def test_one_count_and_the_rounding_alone_up_to_30_bits(knife, cli, tmp_path, bi
 
 
 def test_the_interpolation_tolerance_is_refused_with_the_best_it_could_reach(knife):
-    """Below what the stored data's fraction bits and the arithmetic allow: one line naming the
-    field and the best bound above the rounding."""
+    """Below what the interpolation reaches at one master count per interval: one line naming the
+    field and the best bound above the rounding (a prediction, said so: the table was not built)."""
     with pytest.raises(TableFormatError, match=r"^interpolation_tolerance 1e-06 counts .* cannot be met within "
                                                r"\d+ points; the best bound found is 3\.46\d*e-06 counts above"):
         compile_table(knife, interp="quintic", tolerance="1 counts", interpolation_tolerance="1e-6 counts",

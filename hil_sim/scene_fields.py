@@ -64,7 +64,8 @@ _EVENT_FIELDS = (
           "when the master reaches activation_position (TwinCAT MC_CamActivationMode).",
           default="period_end", choices=ACTIVATIONS, source=_EVENTS),
     Field("event", "activation_position", "number", "activation master_position: the master "
-          "position (as the slave sees it) where it takes effect.", unit="master units",
+          "position (as the slave sees it) where it takes effect; cam_mode drive: within INTEGER64 "
+          "master counts (0x2001:06).", unit="master units",
           default=REQUIRED, minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION,
           when=(("event.activation", "master_position"),), source=_EVENTS),
     Field("event", "master", "choice", "switch, offset: the cam's master coordinate: absolute, or "
@@ -74,10 +75,11 @@ _EVENT_FIELDS = (
           "at the activation is added (PLCopen SlaveAbsolute, MC_CamIn StartMode).",
           default="absolute", choices=("absolute", "relative"), source=_EVENTS),
     Field("event", "master_offset", "number", "switch, offset: MC_CamIn MasterOffset: the cam is "
-          "evaluated at X = master_scaling x master + master_offset.", unit="master units",
+          "evaluated at X = master_scaling x master + master_offset; cam_mode drive: within INTEGER64 "
+          "master counts (0x2001:07).", unit="master units",
           default=0.0, minimum=-MAX_EVENT_POSITION, maximum=MAX_EVENT_POSITION, source=_EVENTS),
     Field("event", "slave_offset", "number", "switch, offset: MC_CamIn SlaveOffset, added to the "
-          "slave.", unit="slave units", default=0.0, minimum=-MAX_EVENT_POSITION,
+          "slave; cam_mode drive: within INTEGER32 slave counts (0x2001:08).", unit="slave units", default=0.0, minimum=-MAX_EVENT_POSITION,
           maximum=MAX_EVENT_POSITION, source=_EVENTS),
     Field("event", "master_scaling", "number", "switch, offset: MC_CamIn MasterScaling.", default=1.0,
           minimum=SCALING_RANGE[0], maximum=SCALING_RANGE[1], source=_EVENTS),

@@ -220,3 +220,22 @@ def test_transition_cli_writes_a_cam_that_check_then_proves(tmp_path):
         assert check.returncode == 0 and "0 errors, 0 warnings" in check.stdout, check.stdout
     run = ecam_cli("transition", KNIFE, DRRD, "--span", 45, "-o", out)
     assert run.returncode == 2 and "ecam: error: then.slave_unit" in run.stderr
+
+
+@pytest.mark.parametrize("at,message", [
+    (float("nan"), "--at: nan should be finite"),
+    (0.0, "--at: 0 should be within combination_drrd_to_product_b's master range (0, 90]"),
+])
+def test_check_then_names_the_at_option_in_its_errors(at, message):
+    """The API's parameter is `at`; on the command line the user typed --at (in process: the
+    CLI turns the InputError into `ecam: error: ...`, exit 2)."""
+    from argparse import Namespace
+
+    from ecam.app.join_command import cmd_check
+
+    transition = Path(__file__).resolve().parents[1] / "hil_sim" / "scenes" / "cams" / "a_to_b.toml"
+    args = Namespace(cam=transition, then=transition.with_name("product_b.toml"), master="relative",
+                     slave=None, at=at, at_period=None, json=True)
+    with pytest.raises(InputError) as raised:
+        cmd_check(args)
+    assert str(raised.value).startswith(message)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 
+from ecam import validate
 from ecam.cam_join import join_cams
 from ecam.camfile import load_cam
 from ecam.errors import InputError
@@ -37,7 +38,12 @@ def cmd_check(args) -> int:
         return cam_commands.cmd_check(args)
     first, then = load_cam(args.cam), load_cam(args.then)
     at = _switch_position(args, first)
-    join = join_cams(first, then, master=args.master or "absolute", slave=args.slave or "absolute", at=at)
+    try:
+        join = join_cams(first, then, master=args.master or "absolute", slave=args.slave or "absolute", at=at)
+    except InputError as exc:  # the API's parameter `at` is the option --at here
+        if getattr(exc, "field", None) == "at" and getattr(args, "at", None) is not None:
+            raise validate.renamed(exc, lambda field: "--at") from None
+        raise
     report = join.report
     if args.json:
         print(json.dumps(json_safe({

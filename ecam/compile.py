@@ -268,7 +268,8 @@ class _Job:
                     floor_seen, floor_built = table.certificate.predicted_error_counts, True
         # a floor no table was built for is the interpolation's prediction alone: the stored
         # data's rounding and the arithmetic would add to it, so it is a lower bound
-        floor_kind = "" if floor_built else ", at least (the interpolation's prediction alone: that table was not built)"
+        floor_kind = ("" if floor_built
+                      else ", at least (the interpolation's prediction alone: that table was not built)")
         if best is None and target < tol_counts:
             raise TableFormatError(
                 f"interpolation_tolerance {interp_tol_counts:.4g} counts ({interp_tol_counts / self.S:.4g} "

@@ -106,6 +106,12 @@ def test_ecam_compile_notes_the_share_above_the_rounding_where_the_tolerance_is_
                                             certify=False)) is None
     assert rounding_hint(ecam.compile_table(knife, certify=False)) is None  # the file's 2 counts
     assert rounding_hint(ecam.compile_table(knife, points=13, interp="quintic", certify=False)) is None
+    # 1 count given in the slave unit on a scale that is not whole counts per unit (the 26-bit
+    # drum, 2^26 / 360 counts per deg): its float conversion comes back 1.000000000000001 counts
+    drum = 2**26 / 360
+    table = ecam.compile_table(knife, tolerance=(1.0 / drum) * (1 + 1e-15), interp="quintic", master_counts=2**20,
+                               slave_counts_per_unit=drum, certify=False)
+    assert table.report["tolerance_counts"] > 1.0 and rounding_hint(table) is not None
 
 
 def test_a_refusal_says_whether_its_best_bound_is_a_built_tables_or_a_prediction(knife):

@@ -68,7 +68,9 @@ def rounding_hint(table) -> str | None:
     tolerance, saying what the table adds to the final rounding and how to hold it lower."""
     report = table.report
     tolerance = report.get("tolerance_counts")
-    if tolerance is None or tolerance > ROUNDING_TOLERANCE or "interpolation_tolerance_counts" in report:
+    # (a tolerance in slave units is converted to counts in floating point: 1 count given as
+    # 1 / counts-per-unit may come back a rounding above 1)
+    if tolerance is None or tolerance > ROUNDING_TOLERANCE * (1.0 + 1e-9) or "interpolation_tolerance_counts" in report:
         return None
     share = report["predicted_error_counts"] - FINAL_ROUNDING_COUNTS
     if share <= ROUNDING_SHARE:

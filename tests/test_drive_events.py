@@ -61,9 +61,10 @@ def _slot(table, values=None):
     return slot
 
 
-def _drive_targets(scene):
+def _drive_targets(scene, velocities: bool = False):
     """What the drive's cam slot commands each cycle for a drive-side scene's plan: the master
-    it is streamed and the events' SDO writes after each cycle's SYNC, as the rig applies them."""
+    it is streamed and the events' SDO writes after each cycle's SYNC, as the rig applies them
+    (the targets; with ``velocities`` also the velocity offsets)."""
     cam = compile_cam(scene)
     plan = plan_run(scene, cam, np.zeros(CYCLES), CYCLES)
     masters = wire_set_points(plan, drive_side=True)[0].tolist()
@@ -72,10 +73,12 @@ def _drive_targets(scene):
     out = []
     for k, master in enumerate(masters):
         slot.values[MASTER_POSITION] = master
-        out.append(slot.target(0.001)[0])
+        out.append(slot.target(0.001))
         for command in commands.get(k, ()):
             _write(slot, slot.values, command)
-    return plan, np.array(out)
+    out = np.array(out)
+    targets = out[:, 0].astype(np.int64)
+    return (plan, targets, out[:, 1]) if velocities else (plan, targets)
 
 
 def _controller_targets(events):
@@ -204,6 +207,19 @@ def test_an_immediate_drive_side_switch_is_placed_where_the_drive_takes_it(maste
     switch, = plan.events.switches
     assert switch.master == 10322 / 102.4 and switch.active_s == pytest.approx(0.280)
     assert np.flatnonzero(drive != plan.targets).tolist() == [279]
+
+
+def test_an_immediate_drive_side_switch_keeps_the_velocity_offset():
+    """A switch is no engagement: the master runs on, so the drive keeps its master speed
+    observer. Switched (master absolute, slave relative) into product B where it moves at about
+    634 000 counts/s, the drive's velocity offset follows the plan's within the observer's
+    whole-count quantization (1 %) from the first cycle after the activation on; before, the
+    observer restarted: that cycle's offset was 0 (the whole feed-forward missing for a cycle)."""
+    event = dict(SWITCH_B, at_position=100.3, activation="immediate", slave="relative")
+    plan, _, velocity = _drive_targets(_scene("drive", [event]), velocities=True)
+    after = slice(280, 300)  # the drive's first cycles on B (the write follows cycle 279's SYNC)
+    assert np.min(np.abs(plan.velocities[after])) > 6e5
+    assert np.max(np.abs(velocity[after] / plan.velocities[after] - 1.0)) < 0.01
 
 
 def test_drive_side_scaling_is_within_a_master_count_of_controller_side():

@@ -249,8 +249,11 @@ class CamSlot:
                 self._place(master, slave)
             else:  # the engagement: MC_CamIn's StartMode absolute, with its offsets and scaling
                 self._place(0, 0, engage=True)
+                self.master_observer = ()
+            # a switch keeps the master speed observer: the master runs on through it, and a
+            # restart would zero the next cycle's velocity offset (the whole feed-forward, one
+            # cycle) and then take the speed from one noisy whole-count increment
             self._activate()
-            self.master_observer = ()
         elif command == CAM_COMMAND_ACTIVATE_AT_PERIOD_END:
             if self.pending_table is None or self.active_table is None or self.out is not None:
                 raise SdoAbortedError(ABORT_DEVICE_STATE)

@@ -390,7 +390,9 @@ def dc_link_stored_energy(power, dt: float, capacity: float = math.inf,
         The most power the infeed returns to the line at any instant [W], >= 0 (0: a rectifier
         infeed, which returns nothing).
     periodic : bool
-        True: the duty repeats (run twice, the second pass returned).
+        True: the duty repeats (its steady cycle returned: the second pass where the duty draws
+        at least what it returns; ``inf`` everywhere where it returns more every cycle and the
+        link charges until it trips).
 
     Returns
     -------
@@ -414,6 +416,10 @@ def energy_to_line(power, dt: float, capacity: float = math.inf, brake_power: fl
     return float(np.sum(_dc_link_flow(power, dt, capacity, brake_power, line_power, periodic)[1]))
 
 
+#: The most passes of a periodic duty through the DC link before it counts as charging for ever.
+_DC_LINK_PASSES = 64
+
+
 def _dc_link_flow(power, dt, capacity, brake_power, line_power, periodic) -> tuple[np.ndarray, np.ndarray]:
     """(stored energy after each sample, energy returned to the line in each sample) [J]."""
     p = _array("power", power).ravel()
@@ -425,15 +431,28 @@ def _dc_link_flow(power, dt, capacity, brake_power, line_power, periodic) -> tup
     stored = 0.0
     out = [0.0] * p.size
     returned = [0.0] * p.size
-    for _ in range(2 if periodic else 1):
-        for i, value in enumerate((-p * dt).tolist()):
+    values = (-p * dt).tolist()
+    # A periodic duty repeats from where the last cycle left the link: passes from an empty link
+    # until a pass ends where the one before it did (the steady cycle; the second pass where the
+    # duty draws at least what it returns, as a rig's losses make it). A duty that still ends
+    # higher after _DC_LINK_PASSES passes charges the link a little more every cycle, until it
+    # trips whatever its size: inf.
+    rounding = 1e-12 * (float(np.sum(np.abs(values))) + 1.0)
+    passes, previous = 0, -math.inf
+    while True:
+        for i, value in enumerate(values):
             charged = stored + value
             returned[i] = min(max(charged, 0.0), line)
             stored = max(0.0, charged - line)
             if stored > capacity and brake > 0.0:
                 stored = max(capacity, stored - brake * dt)
             out[i] = stored
-    return np.array(out), np.array(returned)
+        passes += 1
+        if not periodic or (passes >= 2 and stored <= previous + rounding):
+            return np.array(out), np.array(returned)
+        if passes >= _DC_LINK_PASSES:
+            return np.full(p.size, math.inf), np.array(returned)
+        previous = stored
 
 
 def regenerated_energy(power, dt: float, capacity: float = math.inf,

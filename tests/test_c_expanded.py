@@ -101,7 +101,7 @@ def fold_tables(rng) -> list:
     ecam_poly_fold where the core divides): the seed cam at M = 9 x 2^13 in 32-bit and 64-bit
     words; random tables at the fold's bound, (N - 1)(2N - 1) + 2^(32-k) <= 2^32 (N = 32767, k = 1:
     the largest odd N it takes at k = 1), just past it (N = 32769: the Barrett wrap), at k = 28
-    (N = 3) and at N = 2310 = 2 x 3 x 5 x 7 x 11 (k = 10), and a clamp (no wrap). N = 32769's
+    and k = 29 (N = 3: k = 29 is the largest step of a fold, M <= 2^31) and at N = 2310 = 2 x 3 x 5 x 7 x 11 (k = 10), and a clamp (no wrap). N = 32769's
     c = 2^31 mod N is 2, so a fold there would still be exact; N = 36829 (k = 1, c = 21487) is past
     the bound with a sum that does pass 2^32 (fold_extremes), so a looser condition in init fails."""
     drrd = load_cam(ROOT / "firmware_tables" / "cams" / "combination_drrd.toml")
@@ -113,7 +113,8 @@ def fold_tables(rng) -> list:
                                                                   slave_counts_per_unit=2**20 / (high - low),
                                                                   horner_bits=bits, certify=False)))
     for degree in (1, 3, 5):
-        for M, N in ((65534, 32767), (65538, 32769), (2 * 36829, 36829), (3 * 2**28, 3), (2310 * 2**10, 2310)):
+        for M, N in ((65534, 32767), (65538, 32769), (2 * 36829, 36829), (3 * 2**28, 3), (3 * 2**29, 3),
+                     (2310 * 2**10, 2310)):
             if N > 3000 and degree == 3:
                 continue  # (the bound is the same for every degree)
             out.append((f"fold-random-{degree}-{M}-{N}", cb.make_blob(cb.random_table(rng, degree, True, M, N))))

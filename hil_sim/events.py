@@ -519,7 +519,9 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
     for event in events:
         requested = _request_s(event, program, profile.master_period)
         requests.append((math.inf if requested is None else requested, event.index, event))
-    for requested, _, event in sorted(requests, key=lambda r: (r[0], r[1])):
+    ordered = sorted(requests, key=lambda r: (r[0], r[1]))
+    phased = _plan_phases(ordered, program)
+    for requested, _, event in ordered:
         if requested == math.inf:  # the master never gets there within the run
             if event.action in ("switch", "offset"):
                 switches.append(Switch(event, math.nan, None, cam=event.cam.stem if event.cam else ""))
@@ -531,9 +533,7 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
             cut = float(t_set[_command_cycle(requested, cycle_s, t_set)]) if drive_side else requested
             _supersede(program, switches, motions, cut, event)
         if event.action == "phase":
-            segment = _phase_segment(event, program.phases.state(requested))
-            program.phases.plans.append((requested, segment))
-            motions.append(_motion(event, requested, segment))
+            motions.append(phased[event.index])
         elif event.action == "cam_out":
             if drive_side:  # the drive stops from the cam's state in the cycle after the write
                 requested, writes = _drive_cam_out(event, requested, cycle_s, t_set, scale)
@@ -566,6 +566,26 @@ def apply_events(events: tuple, cam, master, per_unit: float, t_set: np.ndarray,
                              ).astype(np.int64)
     outcome = EventOutcome(tuple(switches), tuple(motions), phase, tuple(commands))
     return targets, velocities, reference, outcome, master_end
+
+
+def _plan_phases(ordered: list, program: _Program) -> dict:
+    """Every phase shift requested before the first cam-out, planned into ``program`` before
+    any switch: a switch queued for a period end or a master position takes effect where the
+    master the slave sees (the axis plus the phase) gets there, and a phase requested between
+    the switch's request and its activation moves that place, as it moves the master the drive
+    is streamed. A phase depends only on the phases before it (its request time is the master
+    axis's). Returns event index -> its Motion."""
+    planned = {}
+    for requested, _, event in ordered:
+        if requested == math.inf:
+            continue
+        if event.action == "cam_out":  # what follows is refused in the events' loop
+            break
+        if event.action == "phase":
+            segment = _phase_segment(event, program.phases.state(requested))
+            program.phases.plans.append((requested, segment))
+            planned[event.index] = _motion(event, requested, segment)
+    return planned
 
 
 def _command_cycle(requested: float, cycle_s: float, t_set: np.ndarray) -> int:

@@ -222,6 +222,28 @@ def test_an_immediate_drive_side_switch_keeps_the_velocity_offset():
     assert np.max(np.abs(velocity[after] / plan.velocities[after] - 1.0)) < 0.01
 
 
+@pytest.mark.parametrize("activation", ["master_position", "period_end"])
+def test_a_phase_shift_before_a_queued_switch_moves_where_it_activates(activation):
+    """A switch requested at 100 deg for master 200 deg (or the period end, 360 deg), and a
+    registration phase of +20 deg requested at 150 deg, before the activation: the master the
+    slave sees (and the drive is streamed) gets there 20 deg of axis travel early, at
+    (200 - 20) / 360 s or (360 - 20) / 360 s, and the drive's set points are the plan's bit for
+    bit. Before, the switch's activation was found on the master without the phase planned after
+    its request (at 200 / 360 s), the drive switched where its shifted master crossed, and its
+    set points left the plan's by up to 46 702 counts."""
+    event = dict(SWITCH_B, activation=activation, master="relative", slave="relative")
+    where = 360.0
+    if activation == "master_position":
+        event["activation_position"] = where = 200.0
+    phase = {"action": "phase", "at_position": 150.0, "shift": 20.0, "max_velocity": 1000.0,
+             "max_acceleration": 1e5, "max_jerk": 1e7}  # done within 0.04 s, by 165 deg
+    plan, drive = _drive_targets(_scene("drive", [event, phase]))
+    switch, = plan.events.switches
+    assert switch.master == where and switch.active_s == pytest.approx((where - 20.0) / 360.0, abs=1e-9)
+    assert np.array_equal(drive, plan.targets)
+    assert plan.events.motions[0].event.action == "phase"
+
+
 def test_drive_side_scaling_is_within_a_master_count_of_controller_side():
     """MasterScaling 0.5 and SlaveScaling 1.25 at the period end: the drive scales the master it
     receives in whole counts, the controller the exact one, so the table's master coordinate

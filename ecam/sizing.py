@@ -498,10 +498,11 @@ def infeed_power(power, regenerative_power: float = 0.0, losses=0.0) -> np.ndarr
 
     The line supplies the shaft power and the losses on its way, P_line = P_mech + P_losses
     (Siemens SINAMICS Low Voltage Engineering Manual, November 2015, "Dimensioning of the
-    Active Infeed", p. 106/528: P_Line = P_mech + P_L Mot + P_L MoMo + P_L AI): motoring draws
-    both, braking returns the shaft power less them. Motoring power is drawn from the line (the
-    DC link's store is left out: the safe side for the infeed's rating); braking power is
-    returned up to ``regenerative_power`` (the rest stays in the DC link,
+    Active Infeed", p. 106/528: P_Line = P_mech + P_L Mot + P_L MoMo + P_L AI): where that is
+    drawn, the losses count; where braking returns power, it is the shaft power, the losses
+    left out (they would lower it: the safe side for the infeed's rating, as for the DC link's).
+    Drawn power comes from the line in full (the DC link's store is left out: the safe side);
+    braking power is returned up to ``regenerative_power`` (the rest stays in the DC link,
     :func:`dc_link_stored_energy`), none by a rectifier infeed (0).
 
     Parameters
@@ -517,14 +518,15 @@ def infeed_power(power, regenerative_power: float = 0.0, losses=0.0) -> np.ndarr
     Returns
     -------
     float or numpy.ndarray
-        ``max(power + losses, -regenerative_power)`` [W].
+        ``power + losses`` where that is > 0, else ``max(power, -regenerative_power)`` [W].
     """
     p = _array("power", power)
     limit = number("regenerative_power", regenerative_power, minimum=0.0)
     loss = _array("losses", losses)
     if not np.all(loss >= 0.0):  # (NaN too)
         raise fail("losses", float(np.min(loss)), ">= 0")
-    value = np.maximum(p + loss, -limit)
+    drawn = p + loss
+    value = np.where(drawn > 0.0, drawn, np.maximum(p, -limit))
     return float(value) if value.ndim == 0 else value
 
 

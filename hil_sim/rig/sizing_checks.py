@@ -270,19 +270,21 @@ def infeed_power_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
     if motor is not None and motor.winding_resistance > 0.0:
         losses = sizing.copper_loss(sizing.current_for_torque(duty.motor_torque, motor.current_points()),
                                     sizing.hot_winding_resistance(motor.winding_resistance))
-    # without an infeed in the scene, all the shaft power and losses (the unrated figure)
-    line = (duty.power + losses if infeed is None
-            else sizing.infeed_power(duty.power, infeed.regenerative_power, losses))
+    # without an infeed in the scene, all of the braking returned (the unrated figure)
+    returns = (infeed.regenerative_power if infeed is not None
+               else float(np.max(-duty.power, initial=0.0)))
+    line = sizing.infeed_power(duty.power, returns, losses)
     rms = sizing.rms_torque(line)  # the RMS of any series: the infeed's current at its voltage
     worst = int(np.argmax(np.abs(line)))
     peak = float(abs(line[worst]))
     facts = {"rms_power": rms, "peak_power": peak}
-    with_losses = (f"; the winding's copper losses included, up to {float(np.max(losses)):.4g} W "
-                   "(3 I^2 R at 100 K rise)" if motor is not None and motor.winding_resistance > 0.0
+    with_losses = (f"; the winding's copper losses in what is drawn, up to {float(np.max(losses)):.4g} W "
+                   "(3 I^2 R at 100 K rise; left out of what braking returns, the safe side)"
+                   if motor is not None and motor.winding_resistance > 0.0
                    else "; no winding resistance in [motor]: copper losses left out")
     if infeed is None:
         return check("infeed_power", rms, None, "W",
-                     f"RMS of the power the drive draws over the cam cycle (peak {peak:.4g} W "
+                     f"RMS of the power through the line over the cam cycle (peak {peak:.4g} W "
                      f"{_where(run, duty, worst)}){with_losses}; no infeed in [drive]: not rated"), facts
     detail = (f"RMS {rms:.4g} W over the cam cycle against the rated {infeed.rated_power:g} W, "
               f"peak {peak:.4g} W {_where(run, duty, worst)} against the peak "

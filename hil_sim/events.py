@@ -335,12 +335,19 @@ class _Program:
 
     def time_of(self, master: float, after: float) -> float | None:
         """The first time >= ``after`` the master the slave sees reaches ``master`` (None: not
-        within the run); the master moves forward."""
+        within the run). The axis moves forward; a phase shift faster than it backwards makes
+        the master the slave sees go back, and then the first crossing is bracketed on a grid
+        over each phase shift (the drive switches at the first crossing)."""
         if self.master_at(after) >= master:
             return after
-        if self.master_at(self.end_s) < master:
-            return None
         low, high = after, self.end_s
+        bracket = self._first_crossing(master, after)
+        if bracket is not None:
+            if bracket[0] == math.inf:
+                return None
+            low, high = bracket
+        elif self.master_at(self.end_s) < master:
+            return None
         for _ in range(200):
             middle = 0.5 * (low + high)
             if middle in (low, high):
@@ -351,6 +358,29 @@ class _Program:
                 low = middle
         return high
 
+
+    def _first_crossing(self, master: float, after: float):
+        """Where the master the slave sees goes back (during a phase shift): (low, high) around
+        its first reaching ``master`` after ``after``, or (inf, inf) if it never does; None where
+        it only goes forward (outside phase shifts the phase is constant and the axis forward),
+        so a plain bisection over the run finds the one crossing."""
+        if not self.phases.plans:
+            return None
+        times = [after, self.end_s]
+        for start, segment in self.phases.plans:
+            times += np.linspace(start, start + segment.duration, _PHASE_GRID).tolist()
+        grid = np.unique(np.clip(times, after, self.end_s))
+        seen = np.asarray(self.master.position(grid), dtype=float) / self.per_unit + self.phases.sample(grid, 0)
+        if not np.any(np.diff(seen) < 0.0):
+            return None
+        reached = np.flatnonzero(seen >= master)
+        if not reached.size:
+            return math.inf, math.inf
+        return float(grid[reached[0] - 1]), float(grid[reached[0]])
+
+
+#: Samples over each phase shift where the first crossing of a master position is looked for.
+_PHASE_GRID = 257
 
 _tables: dict = {}  # (cam content, counts per unit, master counts) -> (profile, table)
 

@@ -244,6 +244,21 @@ def test_a_phase_shift_before_a_queued_switch_moves_where_it_activates(activatio
     assert plan.events.motions[0].event.action == "phase"
 
 
+def test_a_master_position_activation_is_at_the_first_crossing_when_a_phase_turns_the_master_back():
+    """A switch for master 200 deg, then at 201 deg a -30 deg phase shift faster than the axis
+    (1000 deg/s against 360): the master the slave sees crosses 200 at 200/360 s, goes back below
+    it and crosses again at 230/360 s. The drive switches at the first crossing, and so does the
+    plan, bit for bit; before, the bisection over the run found the second (28 072 counts off)."""
+    event = dict(SWITCH_B, activation="master_position", activation_position=200.0, master="relative",
+                 slave="relative")
+    phase = {"action": "phase", "at_position": 201.0, "shift": -30.0, "max_velocity": 1000.0,
+             "max_acceleration": 1e5, "max_jerk": 1e7}
+    plan, drive = _drive_targets(_scene("drive", [event, phase]))
+    switch, = plan.events.switches
+    assert switch.active_s == pytest.approx(200.0 / 360.0, abs=1e-9)
+    assert np.array_equal(drive, plan.targets)
+
+
 def test_drive_side_scaling_is_within_a_master_count_of_controller_side():
     """MasterScaling 0.5 and SlaveScaling 1.25 at the period end: the drive scales the master it
     receives in whole counts, the controller the exact one, so the table's master coordinate

@@ -257,6 +257,17 @@ def test_regeneration_fails_on_a_small_dc_link_and_a_resistor_or_the_infeed_take
     assert line.passed and line.value == 0.0 and "returns up to 16000 W" in line.detail
 
 
+def test_a_cycle_without_braking_names_no_place_in_the_dc_link():
+    # the knife at its own 720 deg/s brakes nowhere (its losses outweigh the inertia's return)
+    line = _checks(_knife())["regeneration"]
+    assert line.value == 0.0 and "nothing stored; no braking in the cycle" in line.detail
+    assert "at master" not in line.detail
+    # at 1912.5 deg/s it brakes, and the Active Line Module returns all of it
+    line = _checks(_knife(1912.5))["regeneration"]
+    assert line.value == 0.0 and line.detail.startswith("nothing stored (the infeed returns all of the braking); "
+                                                        "braking peaks at ")
+
+
 def test_the_stand_in_dc_link_alone_would_limit_the_knife_below_its_motor():
     """The DC link without the infeed (as the knife was rated before the Active Line Module):
     the regeneration check fails at 1900 deg/s, where the motor's heat still passes; with the

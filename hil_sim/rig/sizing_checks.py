@@ -238,8 +238,11 @@ def regeneration_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
              "energy_to_line_per_cycle": to_line,
              "dc_link_energy": capacity if rated else None,
              "brake_resistor_power": brake if rated else None}
-    # where: the fullest DC link, or (nothing stored: the infeed took it all) the hardest braking
-    where = _where(run, duty, fullest if stored[fullest] > 0.0 else hardest)
+    # where: the fullest DC link; nothing stored (the infeed took it all, or no braking): no place
+    if stored[fullest] > 0.0:
+        where = "most energy stored at once " + _where(run, duty, fullest)
+    else:
+        where = "nothing stored" + (" (the infeed returns all of the braking)" if braking[hardest] > 0.0 else "")
     flow = (f"braking peaks at {braking[hardest]:.4g} W {_where(run, duty, hardest)}, "
             f"{returned:.4g} J per cycle" if braking[hardest] > 0.0 else "no braking in the cycle")
     if infeed is not None and line > 0.0:
@@ -249,13 +252,13 @@ def regeneration_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:
         flow += f"; the {infeed.kind} infeed returns none of it"
     if not rated:
         return check("regeneration", float(stored[fullest]), None, "J",
-                     f"most energy stored at once {where}; {flow}; no DC-link capacitance and "
+                     f"{where}; {flow}; no DC-link capacitance and "
                      "chopper voltage in [drive]: not rated"), facts
     what = (f"DC link {capacity:.4g} J between {module.dc_bus_voltage:g} and "
             f"{module.brake_chopper_voltage:g} V"
             + (f", brake resistor {brake:g} W above it" if brake else ", no brake resistor"))
     return check("regeneration", float(stored[fullest]), capacity, "J",
-                 f"most energy stored at once {where}; {flow}; {what}"), facts
+                 f"{where}; {flow}; {what}"), facts
 
 
 def infeed_power_check(run: PreparedRun, duty: Duty) -> tuple[Check, dict]:

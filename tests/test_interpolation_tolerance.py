@@ -126,3 +126,18 @@ def test_a_refusal_says_whether_its_best_bound_is_a_built_tables_or_a_prediction
     with pytest.raises(TableFormatError, match=r"best bound found is 0\.511\d* counts \(the final rounding to whole "
                                                r"counts alone costs 1/2 count\)$"):
         ecam.compile_table(knife, tolerance="0.5009 counts", horner_bits=32, **drum)
+
+
+def test_ecam_export_says_the_key_is_not_for_vendor_exports(tmp_path):
+    text = KNIFE.read_text().replace('tolerance = "2 counts"',
+                                     'tolerance = "1 counts"\ninterpolation_tolerance = "0.05 counts"')
+    cam = tmp_path / "knife.toml"
+    cam.write_text(text)
+    run = [sys.executable, "-m", "ecam.app", "export", str(cam), "--to", "csv", "--interp", "cubic"]
+    out = subprocess.run([*run, "-o", str(tmp_path / "with.csv")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "interpolation_tolerance applies to `ecam compile`'s tables, not to vendor exports" in out.stdout
+    out = subprocess.run([*run[:4], str(KNIFE), *run[5:], "-o", str(tmp_path / "without.csv")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "interpolation_tolerance" not in out.stdout

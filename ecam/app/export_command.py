@@ -32,5 +32,12 @@ def cmd_export(args) -> int:
         print(json.dumps(json_safe(summary), indent=1, sort_keys=True))
     else:
         print(result.report_text(name))
+        if "interpolation_tolerance" in (profile.table or {}):
+            # the key sizes ecam's own fixed-point tables against their final rounding; a
+            # controller interpolates and rounds in its own way, so an export is sized by the
+            # tolerance alone
+            print("  note: the cam file's [table] interpolation_tolerance applies to `ecam compile`'s "
+                  "tables, not to vendor exports (sized by the tolerance under the controller's "
+                  "own interpolation)")
         print(f"  wrote {path}")
     return 0

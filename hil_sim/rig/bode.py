@@ -22,6 +22,7 @@ from ecam.errors import InputError
 from ecam.plot import TEXT_AS_WRITTEN, check_figure_path
 from hil_sim.control import AxisSetup
 from hil_sim.report import Report
+from hil_sim.rig.palette import GRID
 from hil_sim.rig.plot import _LIMIT, _MUTED, _NO_METADATA, _PERIOD_COLOURS, _palette_png
 from hil_sim.tuning import AxisLoops, margins_of
 
@@ -103,7 +104,7 @@ def bode_figure(report: Report, width_in: float = 11.0):
         ax.axvline(nyquist, color=_MUTED, lw=0.8, ls="--")
         # plain numbers: the rig draws text as written, never as mathtext
         ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
-        ax.grid(True, which="both", color="#d0d7de", lw=0.5)
+        ax.grid(True, which="both", color=GRID, lw=0.5)
     magnitude_ax.set_ylabel("|L| [dB]")
     phase_ax.set_ylabel("arg L [deg]")
     phase_ax.set_xlabel("frequency [Hz] (dashed: the controller's Nyquist frequency)")

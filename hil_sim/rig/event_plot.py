@@ -9,14 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from hil_sim.report import Report
+from hil_sim.rig.palette import GRID as _GRID, LIMIT as _LIMIT, PASSED as _PASSED
 
-_LIMIT = "#cf222e"
-_PASSED = "#1a7f37"
 _PATH = "#1f77b4"
 _PHASE = "#8250df"
 _OUT = "#bf8700"
 _RAMP = "#0a7ea4"
-_GRID = "#d0d7de"
 
 
 def has_events(report: Report) -> bool:

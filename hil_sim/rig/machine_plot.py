@@ -17,6 +17,7 @@ import numpy as np
 from ecam.atomic_files import write_files
 from ecam.errors import InputError
 from ecam.plot import TEXT_AS_WRITTEN, check_figure_path
+from hil_sim.rig.palette import GRID, LIMIT
 from hil_sim.rig.plot import figure_bytes
 
 #: One colour per axis (tab10 without its red, which marks the limit), repeated past nine axes.
@@ -92,7 +93,7 @@ def machine_figure(report, width_in: float = 11.0):
         peak = max(peak, worst)
         ax.plot(x, share, lw=1.0, color=COLOURS[i % len(COLOURS)], label=f"{axis.scene} (node {axis.summary.get('node_id')}, "
                 f"phase {axis.summary.get('phase', 0.0):g}; worst {worst:.3g} %)")
-    ax.axhline(100.0, color="#cf222e", lw=1.0, ls="--", label="each axis's limit")
+    ax.axhline(100.0, color=LIMIT, lw=1.0, ls="--", label="each axis's limit")
     ax.set_xlim(0.0, period)
     ax.set_ylim(0.0, 1.08 * peak)
     ax.set_xlabel(f"virtual master position within the machine cycle [{unit}]".replace(" []", ""))
@@ -100,7 +101,7 @@ def machine_figure(report, width_in: float = 11.0):
     verdict = "PASSED" if report.passed else "FAILED"
     ax.set_title(f"machine {report.machine}: {verdict}, {len(report.axes)} axes; tracking "
                  "error where each axis's check looks", loc="left", fontsize=10)
-    ax.grid(True, color="#d0d7de", lw=0.6)
+    ax.grid(True, color=GRID, lw=0.6)
     ax.legend(loc="upper right", fontsize=8)
     return fig
 

@@ -41,6 +41,7 @@ from ecam.atomic_files import write_files
 from ecam.errors import InputError
 from ecam.plot import TEXT_AS_WRITTEN, check_figure_path
 from hil_sim.report import Report
+from hil_sim.rig.palette import GRID as _GRID, LIMIT as _LIMIT, PASSED as _PASSED
 from hil_sim.rig.event_plot import draw_events, has_events
 from hil_sim.rig.sizing_plot import draw_torque_speed, has_torque_speed
 
@@ -58,10 +59,7 @@ BAND_BINS = 720
 # tab10 without its red, which marks limits and failures here.
 _PERIOD_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf",
                    "#e377c2", "#7f7f7f", "#bcbd22")
-_LIMIT = "#cf222e"
-_PASSED = "#1a7f37"
 _BAND = "#b6c2cf"
-_GRID = "#d0d7de"
 _WINDOW = "#8250df"  # the tracking window (cut zone) edges
 _MUTED = "#57606a"
 

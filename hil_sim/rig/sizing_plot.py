@@ -9,12 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from hil_sim.report import Report
+from hil_sim.rig.palette import GRID as _GRID, LIMIT as _LIMIT, PASSED as _PASSED
 
-_LIMIT = "#cf222e"
-_PASSED = "#1a7f37"
 _POINTS = "#1f77b4"
 _S1 = "#8250df"
-_GRID = "#d0d7de"
 
 
 def has_torque_speed(report: Report) -> bool:
